@@ -1,0 +1,89 @@
+"""The ``robovae`` command.
+
+``robovae data``       build a dataset and print one row per robot;
+``robovae fit|validate|test|predict``  the Lightning CLI (model + data from a YAML config).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from robovae.errors import RobovaeError
+
+LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
+
+
+def format_table(rows: list[dict], columns: Sequence[str]) -> str:
+    """Plain-text table with one header line; widths fit the content."""
+    cells = [[str(r.get(c, "")) for c in columns] for r in rows]
+    widths = [max([len(c)] + [len(row[i]) for row in cells]) for i, c in enumerate(columns)]
+    line = lambda vals: "  ".join(v.ljust(w) for v, w in zip(vals, widths)).rstrip()  # noqa: E731
+    return "\n".join([line(list(columns)), line(["-" * w for w in widths])]
+                     + [line(row) for row in cells])
+
+
+def cmd_data(args: argparse.Namespace) -> int:
+    """Build the dataset of ``--source``s and print the per-robot table."""
+    from robovae.data.dataset import RobotDataset
+
+    ds = RobotDataset(args.root, args.source, args.feature_set, jobs=args.jobs,
+                      force_reload=args.rebuild)
+    rows = []
+    for r in ds.report["robots"]:
+        w = r["warnings"]
+        rows.append({**r, "warnings": (w[:70] + "…") if len(w) > 71 else w})
+    cols = ["name", "links", "joints"] + (["geoms"] if ds.feature_set == "full" else []) + \
+        ["depth", "limbs", "features", "warnings"]
+    print(format_table(rows, cols))
+    rep = ds.report
+    print(f"\n{len(rows)} robots, feature set {ds.feature_set}, {len(rep['skipped'])} skipped, "
+          f"{len(rep['duplicates'])} duplicates; cache {ds.processed_paths[0]}")
+    for line in rep["warnings"] + rep["duplicates"]:
+        print(f"note: {line}")
+    for line in rep["skipped"]:
+        print(line, file=sys.stderr)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="robovae", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+    d = sub.add_parser("data", help="build a robot dataset and print a table")
+    d.add_argument("--source", action="append", default=None,
+                   help="zoo | menagerie:NAME,... | dir:PATH | file:PATH | synthetic:... | "
+                        "procedural:n=N (repeatable; default zoo)")
+    d.add_argument("--feature-set", default="paper34", help="paper34 | full")
+    d.add_argument("--root", default="data_cache", help="cache folder")
+    d.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
+    d.add_argument("--rebuild", action="store_true", help="ignore the cache")
+    d.set_defaults(func=cmd_data)
+    for name in LIGHTNING_COMMANDS:
+        sub.add_parser(name, help=f"Lightning CLI: {name} (see robovae {name} --help)",
+                       add_help=False)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``robovae`` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if argv and argv[0] in LIGHTNING_COMMANDS:
+            from robovae.model.cli import run_lightning_cli
+
+            run_lightning_cli(argv)
+            return 0
+        args = build_parser().parse_args(argv)
+        if args.command == "data" and not args.source:
+            args.source = ["zoo"]
+        return args.func(args)
+    except (RobovaeError, KeyError) as e:
+        msg = e.args[0] if isinstance(e, KeyError) and e.args else str(e)
+        print(msg if str(msg).startswith("robovae") else f"robovae: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Data: MJCF ↔ robot graph, the feature registry and datasets."""

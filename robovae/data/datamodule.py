@@ -1,0 +1,111 @@
+"""``RobotDataModule``: a :class:`RobotDataset` split into train/val/test for Lightning."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import lightning as L
+import torch
+from torch_geometric.loader import DataLoader
+
+from robovae.data.dataset import RobotDataset
+from robovae.data.features import Normalizer
+
+
+class RobotDataModule(L.LightningDataModule):
+    """Robot graphs for training, with splits by robot name or by fraction.
+
+    Args:
+        sources: source strings (``zoo``, ``menagerie:go2``, ``dir:PATH``, ``synthetic:...``).
+        feature_set: ``paper34`` or ``full`` (synthetic sources force ``random<d>``).
+        root: cache folder of the processed dataset.
+        train_names: robots to train on (default: all not in val/test).
+        val_names, test_names: robots held out by name. When both are empty the split is by
+            fraction (``val_fraction``/``test_fraction``, seeded shuffle).
+        val_fraction, test_fraction: fractions used when no names are given.
+        val_is_train: validate on the training robots (for overfitting experiments and tiny
+            sets where a held-out robot is the test robot).
+        batch_size: graphs per batch.
+        seed: seed of the fraction split.
+        num_workers: DataLoader workers.
+    """
+
+    def __init__(
+        self,
+        sources: Sequence[str] = ("zoo",),
+        feature_set: str = "paper34",
+        root: str = "data_cache",
+        train_names: Sequence[str] = (),
+        val_names: Sequence[str] = (),
+        test_names: Sequence[str] = (),
+        val_fraction: float = 0.1,
+        test_fraction: float = 0.1,
+        val_is_train: bool = False,
+        batch_size: int = 32,
+        seed: int = 0,
+        num_workers: int = 0,
+    ) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        self.dataset: RobotDataset | None = None
+        self.normalizer: Normalizer | None = None
+
+    @property
+    def feature_set(self) -> str:
+        """The feature set in use (after synthetic sources forced theirs)."""
+        return self.dataset.feature_set if self.dataset is not None else \
+            self.hparams.feature_set
+
+    def prepare_data(self) -> None:
+        RobotDataset(self.hparams.root, self.hparams.sources, self.hparams.feature_set)
+
+    def _split(self, names: list[str]) -> tuple[list[int], list[int], list[int]]:
+        hp = self.hparams
+        index = {n: i for i, n in enumerate(names)}
+        for n in [*hp.train_names, *hp.val_names, *hp.test_names]:
+            if n not in index:
+                raise KeyError(f"robovae: no robot named {n!r} in the dataset "
+                               f"(have: {', '.join(names)})")
+        if hp.val_names or hp.test_names or hp.train_names:
+            val = [index[n] for n in hp.val_names]
+            test = [index[n] for n in hp.test_names]
+            held = set(val) | set(test)
+            train = ([index[n] for n in hp.train_names] if hp.train_names
+                     else [i for i in range(len(names)) if i not in held])
+        else:
+            g = torch.Generator().manual_seed(hp.seed)
+            perm = torch.randperm(len(names), generator=g).tolist()
+            n_test = round(hp.test_fraction * len(names))
+            n_val = round(hp.val_fraction * len(names))
+            test, val, train = perm[:n_test], perm[n_test:n_test + n_val], perm[n_test + n_val:]
+        if hp.val_is_train or not val:
+            val = list(train)
+        return train, val, test
+
+    def setup(self, stage: str | None = None) -> None:
+        if self.dataset is not None:
+            return
+        hp = self.hparams
+        self.dataset = RobotDataset(hp.root, hp.sources, hp.feature_set, progress=False)
+        train, val, test = self._split(self.dataset.names)
+        if not train:
+            raise ValueError("robovae: the training split is empty")
+        self.train_set = self.dataset[train]
+        self.val_set = self.dataset[val]
+        self.test_set = self.dataset[test] if test else self.dataset[val]
+        x = torch.cat([d.x for d in self.train_set])
+        t = torch.cat([d.node_type for d in self.train_set])
+        self.normalizer = Normalizer(self.dataset.feature_set).fit(x, t)
+
+    def train_dataloader(self) -> DataLoader:
+        return DataLoader(self.train_set, batch_size=self.hparams.batch_size, shuffle=True,
+                          num_workers=self.hparams.num_workers)
+
+    def val_dataloader(self) -> DataLoader:
+        return DataLoader(self.val_set, batch_size=self.hparams.batch_size,
+                          num_workers=self.hparams.num_workers)
+
+    def test_dataloader(self) -> DataLoader:
+        return DataLoader(self.test_set, batch_size=self.hparams.batch_size,
+                          num_workers=self.hparams.num_workers)
+

@@ -1,0 +1,190 @@
+"""``RobotDataset``: robot graphs from any mix of sources, cached on disk (PyG ``InMemoryDataset``).
+
+The processed cache lives in ``<root>/processed/robots_<key>.pt`` where ``key`` hashes the
+source strings, the feature set, the package version and the size/mtime of every source
+file, so the cache is rebuilt whenever any of them changes. A build report (one row per robot,
+plus skipped files and duplicates) is saved beside it as JSON.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import torch
+from torch_geometric.data import InMemoryDataset
+
+import robovae
+from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
+from robovae.data.graph import RobotData, limbs
+from robovae.data.mjcf import mjcf_to_graph
+from robovae.data.sources import resolve_sources
+from robovae.errors import RobotFileError, RobovaeError
+
+log = logging.getLogger("robovae")
+
+#: Below this many files, loading runs in-process (worker start-up costs more than it saves).
+PARALLEL_MIN_FILES = 64
+
+
+def _load_one(item: tuple[str | None, str, str]) -> tuple[RobotData | None, str | None]:
+    name, path, feature_set = item
+    try:
+        return mjcf_to_graph(path, feature_set, name=name), None
+    except RobotFileError as e:
+        return None, e.line()
+    except Exception as e:  # never a traceback for bad input: report and go on
+        return None, RobotFileError(path, f"cannot load: {type(e).__name__}: {e}").line()
+
+
+def graph_key(data: RobotData, decimals: int = 6) -> str:
+    """Hash of topology, node types and rounded features: equal keys = duplicate robots."""
+    h = hashlib.sha1()
+    h.update(data.parent.numpy().tobytes())
+    h.update(data.node_type.numpy().tobytes())
+    h.update(torch.round(data.x.double(), decimals=decimals).numpy().tobytes())
+    return h.hexdigest()
+
+
+def summary_row(data: RobotData) -> dict:
+    """One report row: name, node counts per type, depth, limbs, features, warnings."""
+    counts = torch.bincount(data.node_type, minlength=3).tolist()
+    return {"name": data.name, "source": data.source, "nodes": int(data.num_nodes),
+            "links": counts[LINK], "joints": counts[JOINT], "geoms": counts[GEOM],
+            "depth": int(data.depth.max()), "limbs": limbs(data),
+            "features": int(data.x.shape[1]), "warnings": getattr(data, "warnings", "")}
+
+
+class RobotDataset(InMemoryDataset):
+    """Robot graphs from MJCF/URDF files, Menagerie, the zoo or synthetic generators.
+
+    Args:
+        root: cache folder (processed graphs, generated procedural MJCF).
+        sources: source strings (see :mod:`robovae.data.sources`), default ``["zoo"]``.
+        feature_set: registry name (``paper34``, ``full``); synthetic sources force
+            ``random<d>``.
+        jobs: worker processes for loading many files (``0``: all cores).
+        progress: show a progress bar while building.
+        force_reload: rebuild even when a matching cache exists.
+        transform: PyG transform applied on access.
+
+    Attributes:
+        report: ``{"robots": [...rows], "skipped": [one-line errors], "duplicates": [...],
+        "warnings": [...]}`` of the build that made the cache.
+    """
+
+    def __init__(
+        self,
+        root: str | Path = "data_cache",
+        sources: Sequence[str] = ("zoo",),
+        feature_set: str = "paper34",
+        jobs: int = 0,
+        progress: bool = True,
+        force_reload: bool = False,
+        transform: Callable | None = None,
+    ) -> None:
+        self.sources = list(sources)
+        self.jobs = jobs or (os.cpu_count() or 1)
+        self.progress = progress
+        root = Path(root)
+        self._resolved = resolve_sources(self.sources, root)
+        self.feature_set = self._resolved.feature_set or feature_set
+        get_feature_set(self.feature_set)  # fail early on unknown names
+        self._key = self._fingerprint()
+        super().__init__(str(root), transform=transform, force_reload=force_reload, log=False)
+        self.load(self.processed_paths[0], data_cls=RobotData)
+        self.report = json.loads(Path(self.processed_paths[1]).read_text())
+
+    # --- cache identity ------------------------------------------------------------------
+
+    def _fingerprint(self) -> str:
+        h = hashlib.sha1()
+        h.update(json.dumps([self.sources, self.feature_set, robovae.__version__]).encode())
+        for name, path in self._resolved.files:
+            try:
+                st = path.stat()
+                h.update(f"{name}|{path}|{st.st_size}|{st.st_mtime_ns}".encode())
+            except OSError:
+                h.update(f"{name}|{path}|missing".encode())
+        for g in self._resolved.graphs:
+            h.update(graph_key(g).encode())
+        return h.hexdigest()[:16]
+
+    @property
+    def raw_file_names(self) -> list[str]:
+        return []
+
+    @property
+    def processed_file_names(self) -> list[str]:
+        return [f"robots_{self._key}.pt", f"robots_{self._key}.json"]
+
+    def download(self) -> None:  # sources are resolved in __init__
+        pass
+
+    # --- build -----------------------------------------------------------------------------
+
+    def _load_files(self) -> tuple[list[RobotData], list[str]]:
+        items = [(n, str(p), self.feature_set) for n, p in self._resolved.files]
+        if not items:
+            return [], []
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(items), desc="robots", unit="file", disable=not self.progress)
+        results: list[tuple[RobotData | None, str | None]] = []
+        if self.jobs > 1 and len(items) >= PARALLEL_MIN_FILES:
+            chunk = max(1, min(64, len(items) // (self.jobs * 8)))
+            with ProcessPoolExecutor(self.jobs) as pool:
+                for r in pool.map(_load_one, items, chunksize=chunk):
+                    results.append(r)
+                    bar.update()
+        else:
+            for item in items:
+                results.append(_load_one(item))
+                bar.update()
+        bar.close()
+        return [d for d, _ in results if d is not None], [e for _, e in results if e]
+
+    def process(self) -> None:
+        graphs, skipped = self._load_files()
+        graphs += self._resolved.graphs
+        kept, duplicates, seen, names = [], [], {}, set()
+        for g in graphs:
+            key = graph_key(g)
+            if key in seen:
+                duplicates.append(f"{g.name} ({g.source}) duplicates {seen[key]}: skipped")
+                continue
+            base, k = g.name or Path(g.source).stem, 2
+            g.name = base
+            while g.name in names:
+                g.name, k = f"{base}_{k}", k + 1
+            names.add(g.name)
+            seen[key] = g.name
+            kept.append(g)
+        if not kept:
+            lines = "\n".join(skipped)
+            raise RobovaeError(f"robovae: no robot loaded from sources {self.sources}"
+                               + (f"\n{lines}" if lines else ""))
+        report = {"robots": [summary_row(g) for g in kept], "skipped": skipped,
+                  "duplicates": duplicates, "warnings": self._resolved.warnings,
+                  "sources": self.sources, "feature_set": self.feature_set}
+        self.save(kept, self.processed_paths[0])
+        Path(self.processed_paths[1]).write_text(json.dumps(report, indent=1))
+
+    # --- access ----------------------------------------------------------------------------
+
+    @property
+    def names(self) -> list[str]:
+        """Robot names in dataset order."""
+        return [r["name"] for r in self.report["robots"]]
+
+    def by_name(self, name: str) -> RobotData:
+        """The robot called ``name``."""
+        try:
+            return self[self.names.index(name)]
+        except ValueError:
+            raise KeyError(f"no robot named {name!r} (have: {', '.join(self.names)})") from None

@@ -1,0 +1,326 @@
+"""The feature registry: the single source of truth for node features.
+
+A :class:`FeatureSet` declares, for every column of the node feature matrix ``X`` (paper §4.1),
+which node type owns it, its physical range, its unit and its transform. Everything else —
+graph extraction, losses, metrics, the MJCF writer, normalisation — reads widths, masks and
+ranges from here.
+
+Normalisation (SPEC §2) maps a physical value ``v`` of column ``c`` to
+
+.. math::  \\hat v = (T_c(v) - \\mu_c) / \\sigma_c, \\qquad
+           T_c(v) = \\log(\\max(v, 0) + \\epsilon_c)
+           \\text{ (heavy-tailed non-negative columns; else } T_c(v) = v),
+
+with ``mu``/``sigma`` fitted on the training split over the nodes that own the column. One-hot
+and flag columns are left as they are.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Literal
+
+import torch
+from torch import Tensor, nn
+
+Transform = Literal["none", "log", "categorical"]
+
+#: Node type ids shared by every robot feature set. Synthetic sets use id 0 only.
+LINK, JOINT, GEOM = 0, 1, 2
+
+#: MuJoCo joint types in ``mjtJoint`` order (free=0, ball=1, slide=2, hinge=3).
+JOINT_TYPES = ("free", "ball", "slide", "hinge")
+#: Geom primitives a geom node may decode to, and their ``mjtGeom`` ids.
+GEOM_TYPES = ("sphere", "capsule", "ellipsoid", "cylinder", "box")
+GEOM_TYPE_IDS = (2, 3, 4, 5, 6)
+
+_INF = math.inf
+
+
+@dataclass(frozen=True)
+class Feature:
+    """One named feature of one node type.
+
+    Attributes:
+        name: short name, unique within its node type (``pos``, ``mass``, ...).
+        node_type: the node type that owns the columns (``link``, ``joint``, ``geom``, ``node``).
+        width: number of columns.
+        low, high: physical range (used by validity rules and for clamping decoded values).
+        transform: ``log`` for heavy-tailed non-negative values, ``categorical`` for one-hot and
+            flags (not standardised), ``none`` otherwise.
+        eps: offset of the log transform, in the feature's unit.
+        unit: physical unit.
+        source: where the value comes from in the compiled ``mujoco.MjModel``.
+        doc: description (paper Table 1 wording where it applies).
+    """
+
+    name: str
+    node_type: str
+    width: int
+    low: float = -_INF
+    high: float = _INF
+    transform: Transform = "none"
+    eps: float = 0.0
+    unit: str = ""
+    source: str = ""
+    doc: str = ""
+
+    @property
+    def key(self) -> str:
+        """``<node_type>.<name>``, the feature's unique key in a set."""
+        return f"{self.node_type}.{self.name}"
+
+
+@dataclass(frozen=True)
+class FeatureSet:
+    """An ordered list of features with the derived column layout.
+
+    Attributes:
+        name: registry name (``paper34``, ``full``, ``random5``, ...).
+        node_types: node type names, index = node type id.
+        features: features in column order.
+    """
+
+    name: str
+    node_types: tuple[str, ...]
+    features: tuple[Feature, ...]
+    _slices: dict[str, slice] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        slices, start = {}, 0
+        for f in self.features:
+            if f.node_type not in self.node_types:
+                raise ValueError(f"feature {f.key} has unknown node type {f.node_type!r}")
+            if f.key in slices:
+                raise ValueError(f"feature {f.key} declared twice in {self.name}")
+            slices[f.key] = slice(start, start + f.width)
+            start += f.width
+        object.__setattr__(self, "_slices", slices)
+
+    @property
+    def dim(self) -> int:
+        """Total number of columns ``d``."""
+        return sum(f.width for f in self.features)
+
+    @property
+    def num_node_types(self) -> int:
+        return len(self.node_types)
+
+    @property
+    def columns(self) -> list[str]:
+        """Column names, e.g. ``joint.range[0]``, ``link.mass``."""
+        out = []
+        for f in self.features:
+            out += [f.key] if f.width == 1 else [f"{f.key}[{i}]" for i in range(f.width)]
+        return out
+
+    def slice(self, key: str) -> slice:
+        """Columns of feature ``key`` (``<node_type>.<name>``)."""
+        return self._slices[key]
+
+    def features_of(self, node_type: str) -> list[Feature]:
+        return [f for f in self.features if f.node_type == node_type]
+
+    def type_mask(self) -> Tensor:
+        """Boolean ``[num_node_types, dim]``: which columns belong to which node type."""
+        mask = torch.zeros(self.num_node_types, self.dim, dtype=torch.bool)
+        for f in self.features:
+            mask[self.node_types.index(f.node_type), self._slices[f.key]] = True
+        return mask
+
+    def mask(self, node_type: Tensor) -> Tensor:
+        """Per-node column mask ``[N, dim]`` for a vector of node type ids."""
+        return self.type_mask()[node_type]
+
+    def column_attr(self, attr: str) -> Tensor:
+        """A per-column tensor of a :class:`Feature` attribute (``low``, ``high``, ``eps``)."""
+        vals = []
+        for f in self.features:
+            vals += [float(getattr(f, attr))] * f.width
+        return torch.tensor(vals, dtype=torch.float64)
+
+    def column_transform(self, transform: Transform) -> Tensor:
+        """Boolean ``[dim]``: columns whose transform is ``transform``."""
+        out = []
+        for f in self.features:
+            out += [f.transform == transform] * f.width
+        return torch.tensor(out, dtype=torch.bool)
+
+    def empty(self, n: int) -> Tensor:
+        """A zero feature matrix for ``n`` nodes."""
+        return torch.zeros(n, self.dim, dtype=torch.float32)
+
+
+# --- the declarations ------------------------------------------------------------------------
+
+_R = math.pi * 2  # hinge ranges beyond +-2pi are unusual but legal
+
+
+def _joint_paper() -> list[Feature]:
+    """Appendix E, joint rows (12 columns)."""
+    return [
+        Feature("range", "joint", 2, -1e3, 1e3, unit="rad|m", source="jnt_range",
+                doc="Allowed motion limits [min, max] (zero when unlimited)"),
+        Feature("stiffness", "joint", 1, 0.0, 1e6, "log", 1e-3, "N·m/rad", "jnt_stiffness",
+                "Joint stiffness (spring constant)"),
+        Feature("axis", "joint", 3, -1.0, 1.0, unit="", source="jnt_axis",
+                doc="Axis of rotation / translation, unit vector (local frame)"),
+        Feature("pos", "joint", 3, -10.0, 10.0, unit="m", source="jnt_pos",
+                doc="Anchor position of the joint in its body frame"),
+        Feature("armature", "joint", 1, 0.0, 1e3, "log", 1e-5, "kg·m²", "dof_armature",
+                "Added rotational inertia for the joint's first DoF"),
+        Feature("damping", "joint", 1, 0.0, 1e4, "log", 1e-3, "N·m·s/rad", "dof_damping",
+                "Viscous damping coefficient"),
+        Feature("frictionloss", "joint", 1, 0.0, 1e4, "log", 1e-3, "N·m", "dof_frictionloss",
+                "Static friction before motion occurs"),
+    ]
+
+
+def _link_paper() -> list[Feature]:
+    """Appendix E, body rows (22 columns)."""
+    return [
+        Feature("pos", "link", 3, -10.0, 10.0, unit="m", source="body_pos",
+                doc="Body position in its parent frame"),
+        Feature("mass", "link", 1, 0.0, 1e4, "log", 1e-4, "kg", "body_mass", "Mass of the body"),
+        Feature("inertia", "link", 3, 0.0, 1e4, "log", 1e-7, "kg·m²", "body_inertia",
+                "Diagonal inertia in the inertial frame"),
+        Feature("quat", "link", 4, -1.0, 1.0, source="body_quat",
+                doc="Orientation in the parent frame, unit quaternion (w, x, y, z)"),
+        Feature("subtreemass", "link", 1, 0.0, 1e5, "log", 1e-4, "kg", "body_subtreemass",
+                "Mass of the body and its descendants"),
+        Feature("ipos", "link", 3, -10.0, 10.0, unit="m", source="body_ipos",
+                doc="Centre of mass in the body frame"),
+        Feature("iquat", "link", 4, -1.0, 1.0, source="body_iquat",
+                doc="Orientation of the inertial frame in the body frame"),
+        Feature("size", "link", 3, 0.0, 10.0, "log", 1e-4, "m", "geom_size",
+                "Size of the body's first collision geom (else first geom; zero if none)"),
+    ]
+
+
+def _joint_full() -> list[Feature]:
+    return [
+        Feature("type", "joint", len(JOINT_TYPES), 0.0, 1.0, "categorical", source="jnt_type",
+                doc="Joint type one-hot: " + ", ".join(JOINT_TYPES)),
+        Feature("limited", "joint", 1, 0.0, 1.0, "categorical", source="jnt_limited",
+                doc="1 when the joint range is enforced"),
+        *_joint_paper(),
+        Feature("actuated", "joint", 1, 0.0, 1.0, "categorical", source="actuator_trnid",
+                doc="1 when an actuator drives this joint"),
+        Feature("gear", "joint", 1, -1e4, 1e4, unit="", source="actuator_gear[0]",
+                doc="Gear of the first actuator on this joint (0 when none)"),
+        Feature("ctrlrange", "joint", 2, -1e4, 1e4, unit="", source="actuator_ctrlrange",
+                doc="Control range of that actuator (0, 0 when unlimited/none)"),
+    ]
+
+
+def _geom_full() -> list[Feature]:
+    return [
+        Feature("type", "geom", len(GEOM_TYPES), 0.0, 1.0, "categorical", source="geom_type",
+                doc="Geom primitive one-hot: " + ", ".join(GEOM_TYPES)
+                + " (a mesh becomes a box of its bounding size)"),
+        Feature("pos", "geom", 3, -10.0, 10.0, unit="m", source="geom_pos",
+                doc="Geom position in its body frame"),
+        Feature("quat", "geom", 4, -1.0, 1.0, source="geom_quat",
+                doc="Geom orientation in its body frame"),
+        Feature("size", "geom", 3, 0.0, 10.0, "log", 1e-4, "m", "geom_size",
+                doc="Primitive size parameters (MuJoCo convention)"),
+        Feature("friction", "geom", 3, 0.0, 10.0, "log", 1e-5, "", "geom_friction",
+                doc="Sliding, torsional, rolling friction"),
+        Feature("collides", "geom", 1, 0.0, 1.0, "categorical", source="geom_contype",
+                doc="1 when contype or conaffinity is non-zero"),
+    ]
+
+
+@cache
+def get_feature_set(name: str) -> FeatureSet:
+    """The registered feature set called ``name``.
+
+    ``paper34`` (appendix E, link + joint), ``full`` (adds joint type, actuator and geom nodes)
+    or ``random<d>`` (the paper's synthetic trees: ``d`` features in [0, 1] on one node type).
+    """
+    if name == "paper34":
+        return FeatureSet("paper34", ("link", "joint"), tuple(_joint_paper() + _link_paper()))
+    if name == "full":
+        return FeatureSet(
+            "full", ("link", "joint", "geom"),
+            tuple(_joint_full() + _link_paper() + _geom_full()),
+        )
+    m = re.fullmatch(r"random(\d+)", name)
+    if m and int(m.group(1)) > 0:
+        feats = tuple(Feature(f"f{i}", "node", 1, 0.0, 1.0) for i in range(int(m.group(1))))
+        return FeatureSet(name, ("node",), feats)
+    raise KeyError(f"unknown feature set {name!r} (known: paper34, full, random<d>)")
+
+
+FEATURE_SETS = ("paper34", "full")
+
+
+# --- normalisation ---------------------------------------------------------------------------
+
+
+class Normalizer(nn.Module):
+    """Per-column transform + standardisation, fitted on a training split.
+
+    The statistics are buffers, so they travel inside every checkpoint of a module that owns
+    the normaliser: ``forward`` maps physical values to model units, :meth:`inverse` back.
+
+    .. math::  \\hat x_{ic} = m_{ic} (T_c(x_{ic}) - \\mu_c) / \\sigma_c
+
+    where ``m`` is the node's column mask (paper §4.1: rows carry zeros in the other types'
+    columns).
+    """
+
+    mean: Tensor
+    std: Tensor
+    fitted: Tensor
+
+    def __init__(self, feature_set: str | FeatureSet) -> None:
+        super().__init__()
+        fs = get_feature_set(feature_set) if isinstance(feature_set, str) else feature_set
+        self.feature_set = fs
+        d = fs.dim
+        self.register_buffer("mean", torch.zeros(d))
+        self.register_buffer("std", torch.ones(d))
+        self.register_buffer("fitted", torch.zeros((), dtype=torch.bool))
+        self.register_buffer("type_mask", fs.type_mask(), persistent=False)
+        self.register_buffer("is_log", fs.column_transform("log"), persistent=False)
+        self.register_buffer("is_cat", fs.column_transform("categorical"), persistent=False)
+        self.register_buffer("eps", fs.column_attr("eps").float(), persistent=False)
+
+    def _t(self, x: Tensor) -> Tensor:
+        return torch.where(self.is_log, torch.log(x.clamp_min(0.0) + self.eps.clamp_min(1e-12)), x)
+
+    def _t_inv(self, y: Tensor) -> Tensor:
+        back = (torch.exp(y.clamp(max=30.0)) - self.eps).clamp_min(0.0)
+        return torch.where(self.is_log, back, y)
+
+    @torch.no_grad()
+    def fit(self, x: Tensor, node_type: Tensor) -> Normalizer:
+        """Fit ``mu``/``sigma`` per column over the nodes that own it (training split only)."""
+        mask = self.type_mask[node_type].float()
+        t = self._t(x.float()) * mask
+        count = mask.sum(0).clamp_min(1.0)
+        mean = t.sum(0) / count
+        var = (((t - mean) * mask) ** 2).sum(0) / count
+        std = var.sqrt()
+        std = torch.where(std < 1e-6, torch.ones_like(std), std)
+        self.mean.copy_(torch.where(self.is_cat, torch.zeros_like(mean), mean))
+        self.std.copy_(torch.where(self.is_cat, torch.ones_like(std), std))
+        self.fitted.fill_(True)
+        return self
+
+    def forward(self, x: Tensor, node_type: Tensor) -> Tensor:
+        """Physical values → normalised model units (zero outside the node's own columns)."""
+        mask = self.type_mask[node_type]
+        return torch.where(mask, (self._t(x) - self.mean) / self.std, torch.zeros_like(x))
+
+    def inverse(self, y: Tensor, node_type: Tensor) -> Tensor:
+        """Normalised model units → physical values (zero outside the node's own columns)."""
+        mask = self.type_mask[node_type]
+        return torch.where(mask, self._t_inv(y * self.std + self.mean), torch.zeros_like(y))
+
+    def extra_repr(self) -> str:
+        return f"feature_set={self.feature_set.name}, fitted={bool(self.fitted)}"

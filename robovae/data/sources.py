@@ -1,0 +1,133 @@
+"""Data sources, as the strings a config or the CLI gives (SPEC §5).
+
+================================ ===========================================================
+source                           robots
+================================ ===========================================================
+``zoo``                          locomotion models inside ``dm_control`` and ``gymnasium``
+``menagerie:go2,unitree_a1``     Menagerie robots through the ``mujoco-menagerie`` package
+                                 (``MENAGERIE_ROOT`` points it at an offline checkout)
+``dir:PATH``                     every ``.xml``/``.urdf`` below ``PATH`` (recursive)
+``file:PATH`` or ``PATH``        one file (a bare folder path acts as ``dir:``)
+``synthetic:n=20,nodes=15,dim=5``  the paper's random trees (``seed=``, ``unseen=1`` adds one
+                                 tree not isomorphic to the others, named ``random_unseen``)
+``procedural:n=1000,seed=0``     procedural legged robots written as MJCF (``kinds=a+b``)
+================================ ===========================================================
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from robovae.data.graph import RobotData
+from robovae.data.mjcf import SUFFIXES
+from robovae.errors import RobovaeError
+
+
+@dataclass
+class Resolved:
+    """What a list of sources expands to: files to load and graphs made in memory."""
+
+    files: list[tuple[str | None, Path]] = field(default_factory=list)  # (name or None, path)
+    graphs: list[RobotData] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    feature_set: str | None = None  # forced by synthetic sources (random<d>)
+
+
+def _options(arg: str) -> dict[str, str]:
+    out = {}
+    for part in filter(None, arg.split(",")):
+        if "=" not in part:
+            raise RobovaeError(f"robovae: source option '{part}' is not key=value")
+        k, v = part.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def find_robot_files(folder: Path) -> list[Path]:
+    """Robot files below ``folder``, sorted, skipping hidden folders."""
+    out = []
+    for dirpath, dirnames, filenames in os.walk(folder):
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        out += [Path(dirpath) / f for f in sorted(filenames) if f.lower().endswith(SUFFIXES)]
+    return out
+
+
+def menagerie_file(name: str) -> Path:
+    """The robot file of Menagerie robot ``name`` (``unitree_go2``; ``go2`` also accepted).
+
+    Uses the ``mujoco-menagerie`` package, which downloads on first use or reads
+    ``MENAGERIE_ROOT``. When the default entry point is absent from an offline checkout, the
+    first robot entry point present is used.
+    """
+    try:
+        import mujoco_menagerie
+    except ImportError:
+        raise RobovaeError("robovae: menagerie sources need the mujoco-menagerie package "
+                           "(pip install 'robovae[menagerie]')") from None
+    names = mujoco_menagerie.names()
+    if name not in names:
+        matches = [n for n in names if n.endswith("_" + name)]
+        if len(matches) != 1:
+            raise RobovaeError(f"robovae: unknown Menagerie robot '{name}'")
+        name = matches[0]
+    robot = mujoco_menagerie.get(name)
+    try:
+        folder = robot.path()
+    except Exception as e:  # MenagerieError, DownloadError, network errors
+        raise RobovaeError(f"robovae: menagerie:{name}: {' '.join(str(e).split())}") from None
+    candidates = [robot.entry(robot.default_model).file]
+    candidates += [e.file for e in robot.entry_points if e.kind == "robot"]
+    for file in candidates:
+        if (folder / file).is_file():
+            return folder / file
+    raise RobovaeError(f"robovae: menagerie:{name}: no robot file in {folder}")
+
+
+def resolve_sources(sources: list[str] | tuple[str, ...], cache_dir: Path) -> Resolved:
+    """Expand source strings into files and in-memory graphs (see the module table)."""
+    out = Resolved()
+    for src in sources:
+        kind, _, arg = src.partition(":") if ":" in src else ("", "", src)
+        if kind == "zoo" or src == "zoo":
+            from robovae.data.zoo import zoo_files
+
+            files, warns = zoo_files()
+            out.files += [(n, p) for n, p in files]
+            out.warnings += warns
+        elif kind == "menagerie":
+            for name in filter(None, (n.strip() for n in arg.split(","))):
+                out.files.append((None, menagerie_file(name)))
+        elif kind == "dir" or (kind == "" and Path(arg).is_dir()):
+            folder = Path(arg).expanduser()
+            if not folder.is_dir():
+                raise RobovaeError(f"robovae: {folder}: no such folder")
+            out.files += [(None, p) for p in find_robot_files(folder)]
+        elif kind in ("file", ""):
+            out.files.append((None, Path(arg).expanduser()))
+        elif kind == "synthetic":
+            from robovae.data.synthetic import random_trees, unseen_random_tree
+
+            o = _options(arg)
+            n, nodes, dim = int(o.get("n", 20)), int(o.get("nodes", 15)), int(o.get("dim", 5))
+            seed = int(o.get("seed", 0))
+            trees = random_trees(n, nodes, dim, seed=seed)
+            if int(o.get("unseen", 0)):
+                extra = unseen_random_tree(trees, nodes, dim, seed=seed + 1)
+                extra.name = "random_unseen"
+                trees.append(extra)
+            out.graphs += trees
+            out.feature_set = f"random{dim}"
+        elif kind == "procedural":
+            from robovae.data.procedural import write_procedural
+
+            o = _options(arg)
+            n, seed = int(o.get("n", 100)), int(o.get("seed", 0))
+            kinds = o["kinds"].split("+") if "kinds" in o else None
+            folder = cache_dir / "raw" / f"procedural_n{n}_s{seed}_{'+'.join(kinds or ['all'])}"
+            out.files += [(None, p) for p in write_procedural(folder, n, seed=seed, kinds=kinds)]
+        else:
+            raise RobovaeError(f"robovae: unknown source '{src}' (zoo, menagerie:, dir:, file:, "
+                               "synthetic:, procedural:)")
+    return out

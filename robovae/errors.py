@@ -1,0 +1,41 @@
+"""One-line errors for bad input.
+
+Every problem with an input file is reported as a single line::
+
+    robovae: <file>: <what> (<element/line>)
+
+and never as a traceback. Library code raises :class:`RobotFileError`; the CLI and the
+dataset builder print ``str(err)`` and go on with the other files.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class RobovaeError(Exception):
+    """Base class of every error robovae raises on purpose."""
+
+
+class RobotFileError(RobovaeError):
+    """A robot file that cannot become a robot graph.
+
+    Args:
+        path: the offending file.
+        what: what is wrong, in a few words.
+        where: the element and/or line, when known.
+    """
+
+    def __init__(self, path: str | Path, what: str, where: str | None = None) -> None:
+        self.path = str(path)
+        self.what = " ".join(str(what).split())  # always one line
+        self.where = " ".join(where.split()) if where else None
+        super().__init__(self.line())
+
+    def line(self) -> str:
+        """The one-line message ``robovae: <file>: <what> (<where>)``."""
+        tail = f" ({self.where})" if self.where else ""
+        return f"robovae: {self.path}: {self.what}{tail}"
+
+    def __str__(self) -> str:
+        return self.line()

@@ -1,0 +1,96 @@
+"""RobotDataset (cache, sources, de-duplication) and RobotDataModule (splits, normaliser)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+
+import pytest
+import torch
+
+from robovae.data.datamodule import RobotDataModule
+from robovae.data.dataset import RobotDataset
+from robovae.data.graph import describe
+
+
+def test_zoo_builds_offline(cache_root):
+    ds = RobotDataset(cache_root, ["zoo"], progress=False)
+    assert len(ds) >= 15
+    assert len(set(ds.names)) == len(ds)
+    for name in ["gym_ant", "dmc_humanoid", "dmc_quadruped", "dmc_dog"]:
+        assert name in ds.names
+    assert "duplicates gym_walker2d" in " ".join(ds.report["duplicates"])
+
+
+def test_cache_is_reused_and_rebuilt_on_change(tmp_path, menagerie_dir):
+    src = tmp_path / "robots"
+    src.mkdir()
+    shutil.copy(menagerie_dir / "unitree_go2" / "go2.xml", src / "go2.xml")
+    a = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False)
+    b = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False)
+    assert a.processed_paths == b.processed_paths
+    c = RobotDataset(tmp_path / "c", [f"dir:{src}"], feature_set="full", progress=False)
+    assert c.processed_paths != a.processed_paths and c.feature_set == "full"
+    os.utime(src / "go2.xml", ns=(1, 1))  # touch: the source changed
+    d = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False)
+    assert d.processed_paths != a.processed_paths
+
+
+def test_scene_and_robot_file_are_one_robot(tmp_path, menagerie_dir):
+    """A Menagerie-style folder: scene.xml includes the robot file; one robot, named by it."""
+    src = tmp_path / "unitree_go2"
+    src.mkdir()
+    shutil.copy(menagerie_dir / "unitree_go2" / "go2.xml", src / "go2.xml")
+    (src / "scene.xml").write_text(
+        '<mujoco model="go2 scene"><include file="go2.xml"/><worldbody>'
+        '<geom name="floor" size="0 0 0.05" type="plane"/></worldbody></mujoco>')
+    ds = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False)
+    assert ds.names == ["go2"]
+    assert len(ds.report["duplicates"]) == 1
+
+
+def test_menagerie_package_with_local_root(tmp_path, menagerie_dir, monkeypatch):
+    pytest.importorskip("mujoco_menagerie")
+    monkeypatch.setenv("MENAGERIE_ROOT", str(menagerie_dir))
+    ds = RobotDataset(tmp_path, ["menagerie:unitree_go2,unitree_a1,pal_talos"], progress=False)
+    assert ds.names == ["go2", "a1", "talos"]
+    assert ds.by_name("go2").num_nodes == 26
+
+
+def test_menagerie_unknown_name(tmp_path, monkeypatch, menagerie_dir):
+    pytest.importorskip("mujoco_menagerie")
+    from robovae.errors import RobovaeError
+
+    monkeypatch.setenv("MENAGERIE_ROOT", str(menagerie_dir))
+    with pytest.raises(RobovaeError, match="unknown Menagerie robot 'nobot'"):
+        RobotDataset(tmp_path, ["menagerie:nobot"], progress=False)
+
+
+def test_datamodule_split_by_name_fits_normalizer_on_train(cache_root, menagerie_dir):
+    dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
+                         train_names=["go1", "a1"], test_names=["go2"], batch_size=2)
+    dm.setup("fit")
+    assert [d.name for d in dm.train_set] == ["go1", "a1"]
+    assert [d.name for d in dm.test_set] == ["go2"]
+    x = torch.cat([d.x for d in dm.train_set])
+    t = torch.cat([d.node_type for d in dm.train_set])
+    y = dm.normalizer(x, t)
+    link_mass = dm.normalizer.feature_set.slice("link.mass").start
+    assert abs(float(y[t == 0, link_mass].mean())) < 1e-5  # standardised on train only
+    batch = next(iter(dm.train_dataloader()))
+    assert batch.num_graphs == 2 and batch.x.shape[1] == 34
+
+
+def test_datamodule_split_by_fraction(cache_root):
+    dm = RobotDataModule(["zoo"], root=str(cache_root), val_fraction=0.2, test_fraction=0.2)
+    dm.setup()
+    names = [d.name for d in dm.train_set] + [d.name for d in dm.val_set] + \
+        [d.name for d in dm.test_set]
+    assert sorted(names) == sorted(dm.dataset.names)
+    assert len(dm.test_set) == round(0.2 * len(dm.dataset))
+
+
+def test_describe(cache_root):
+    ds = RobotDataset(cache_root, ["zoo"], progress=False)
+    text = describe(ds.by_name("gym_ant"), "paper34")
+    assert text.startswith("gym_ant: 22 nodes (13 links, 9 joints)") and "4 limbs" in text

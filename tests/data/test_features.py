@@ -1,0 +1,71 @@
+"""The feature registry and normalisation."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from robovae.data.features import JOINT, LINK, Normalizer, get_feature_set
+
+
+def test_paper34_is_appendix_e():
+    fs = get_feature_set("paper34")
+    assert fs.dim == 34
+    widths = {f.key: f.width for f in fs.features}
+    assert widths == {
+        "joint.range": 2, "joint.stiffness": 1, "joint.axis": 3, "joint.pos": 3,
+        "joint.armature": 1, "joint.damping": 1, "joint.frictionloss": 1,
+        "link.pos": 3, "link.mass": 1, "link.inertia": 3, "link.quat": 4,
+        "link.subtreemass": 1, "link.ipos": 3, "link.iquat": 4, "link.size": 3}
+    mask = fs.type_mask()
+    assert mask[JOINT].sum() == 12 and mask[LINK].sum() == 22
+    assert not (mask[JOINT] & mask[LINK]).any()
+    assert len(fs.columns) == 34 and fs.columns[0] == "joint.range[0]"
+
+
+def test_full_is_a_superset():
+    paper, full = get_feature_set("paper34"), get_feature_set("full")
+    assert {f.key for f in paper.features} < {f.key for f in full.features}
+    assert full.node_types == ("link", "joint", "geom")
+    with pytest.raises(KeyError):
+        get_feature_set("nope")
+    assert get_feature_set("random5").dim == 5
+
+
+def _random_physical(n: int, fs) -> tuple[torch.Tensor, torch.Tensor]:
+    g = torch.Generator().manual_seed(0)
+    types = torch.randint(0, fs.num_node_types, (n,), generator=g)
+    x = torch.rand(n, fs.dim, generator=g) * 3.0
+    return x * fs.type_mask()[types], types
+
+
+@pytest.mark.parametrize("name", ["paper34", "full"])
+def test_normalizer_round_trip(name):
+    fs = get_feature_set(name)
+    x, t = _random_physical(500, fs)
+    norm = Normalizer(fs).fit(x, t)
+    y = norm(x, t)
+    assert torch.allclose(norm.inverse(y, t), x, atol=1e-4, rtol=1e-4)
+    own = fs.type_mask()[t]
+    assert (y[~own] == 0).all()
+    cont = ~fs.column_transform("categorical")
+    # standardised over the owning nodes: mean 0, std 1 on every non-constant column
+    for c in torch.nonzero(cont).view(-1).tolist():
+        col = y[own[:, c], c]
+        assert abs(float(col.mean())) < 1e-4
+
+
+def test_normalizer_state_travels_in_state_dict():
+    fs = get_feature_set("paper34")
+    x, t = _random_physical(100, fs)
+    a = Normalizer(fs).fit(x, t)
+    b = Normalizer(fs)
+    b.load_state_dict(a.state_dict())
+    assert bool(b.fitted) and torch.equal(a(x, t), b(x, t))
+
+
+def test_log_columns_are_the_heavy_tailed_ones():
+    fs = get_feature_set("paper34")
+    logs = {f.key for f in fs.features if f.transform == "log"}
+    assert logs == {"joint.stiffness", "joint.armature", "joint.damping", "joint.frictionloss",
+                    "link.mass", "link.inertia", "link.subtreemass", "link.size"}
