@@ -68,12 +68,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``robovae`` console script."""
+    explicit = argv is not None
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         if argv and argv[0] in LIGHTNING_COMMANDS:
             from robovae.model.cli import run_lightning_cli
 
-            run_lightning_cli(argv)
+            run_lightning_cli(argv if explicit else None)
             return 0
         args = build_parser().parse_args(argv)
         if args.command == "data" and not args.source:

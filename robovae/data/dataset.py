@@ -32,14 +32,23 @@ log = logging.getLogger("robovae")
 PARALLEL_MIN_FILES = 64
 
 
-def _load_one(item: tuple[str | None, str, str]) -> tuple[RobotData | None, str | None]:
+def _load_one(item: tuple[str | None, str, str]) -> tuple[dict | None, str | None]:
+    """Worker: one file → the graph's fields as numpy arrays (tensors would travel between
+    processes as shared-memory file descriptors, which run out on large builds)."""
     name, path, feature_set = item
     try:
-        return mjcf_to_graph(path, feature_set, name=name), None
+        data = mjcf_to_graph(path, feature_set, name=name)
+        return {k: v.numpy() if isinstance(v, torch.Tensor) else v
+                for k, v in data.to_dict().items()}, None
     except RobotFileError as e:
         return None, e.line()
     except Exception as e:  # never a traceback for bad input: report and go on
         return None, RobotFileError(path, f"cannot load: {type(e).__name__}: {e}").line()
+
+
+def _from_fields(fields: dict) -> RobotData:
+    return RobotData(**{k: torch.from_numpy(v) if hasattr(v, "dtype") else v
+                        for k, v in fields.items()})
 
 
 def graph_key(data: RobotData, decimals: int = 6) -> str:
@@ -135,7 +144,7 @@ class RobotDataset(InMemoryDataset):
         from tqdm.auto import tqdm
 
         bar = tqdm(total=len(items), desc="robots", unit="file", disable=not self.progress)
-        results: list[tuple[RobotData | None, str | None]] = []
+        results: list[tuple[dict | None, str | None]] = []
         if self.jobs > 1 and len(items) >= PARALLEL_MIN_FILES:
             chunk = max(1, min(64, len(items) // (self.jobs * 8)))
             with ProcessPoolExecutor(self.jobs) as pool:
@@ -147,7 +156,7 @@ class RobotDataset(InMemoryDataset):
                 results.append(_load_one(item))
                 bar.update()
         bar.close()
-        return [d for d, _ in results if d is not None], [e for _, e in results if e]
+        return [_from_fields(d) for d, _ in results if d is not None], [e for _, e in results if e]
 
     def process(self) -> None:
         graphs, skipped = self._load_files()
