@@ -1,0 +1,308 @@
+"""Depth-first tree decoder (paper §4.3, eq. 9–11): teacher forcing and batched greedy decoding.
+
+The decoder walks a tree depth-first, like JT-VAE's DFS trace. With ``x^p = W^p x`` (own weights)
+and its own :class:`~robovae.model.tree.TreeGRUCell`:
+
+- up message (sent when the walk backtracks from ``c``):
+  ``h_{c->p} = GRU(x_c^p, {h_{k->c}}_{k child of c})``;
+- down message (sent when ``p`` expands into ``c``):
+  ``h_{p->c} = GRU(x_p^p, {h_{parent(p)->p}} + {h_{k->p}}_{k earlier sibling of c})``.
+
+A node with ``K`` children makes ``K + 1`` topology decisions (eq. 9): on arrival and after
+returning from each child; the first ``K`` are "expand" (1), the last "backtrack" (0):
+
+.. math:: p_t = \\sigma(u^c \\cdot \\tau(W_1^c x_i + W_2^c z + W_3^c \\sum_k h_{k,i}
+          [+ E_{depth}(d_i) + E_{count}(n_i)]))
+
+where the sum runs over the messages received so far. The bracket (``topo_context=True``) adds
+embeddings of the node's depth and of its number of children generated so far (both clamped): the
+paper's §5 failure mode ("a node on the root always expands into a full limb") is a topology
+head that cannot tell where it is; ``topo_context=False`` is exactly eq. 9.
+
+Each generated node ``c`` gets (eq. 10–11) ``a = ReLU(W_1^l z + W_2^l h_{p->c})``,
+features ``f_c = U^l a`` and type logits ``U^c a`` (a categorical head over ``num_types``; absent
+when there is a single type). The **root** has no parent message: it is predicted from ``z``
+alone (``h = 0``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor, nn
+from torch_geometric.data import Data
+
+from robovae.model.tree import (
+    TreeGRUCell,
+    TreeSchedule,
+    exclusive_sibling_prefix,
+    tree_schedule,
+    upward,
+)
+
+
+@dataclass
+class DecoderOutput:
+    """Teacher-forcing predictions for a batch.
+
+    Attributes:
+        topo_logits: ``[T]`` expansion logits, one per decision, in DFS-trace order per graph
+            (graphs in batch order), ``T = 2N - B``.
+        topo_target: ``[T]`` float labels, 1 expand / 0 backtrack.
+        topo_graph: ``[T]`` graph index of each decision; ``topo_node``: ``[T]`` deciding node.
+        feat_pred: ``[N, d]`` predicted (normalised) features, batch node order.
+        type_logits: ``[N, num_types]`` (zeros when ``num_types == 1``).
+    """
+
+    topo_logits: Tensor
+    topo_target: Tensor
+    topo_graph: Tensor
+    topo_node: Tensor
+    feat_pred: Tensor
+    type_logits: Tensor
+
+
+class TopoHead(nn.Module):
+    """Expansion logit (eq. 9), optionally with depth / child-count context."""
+
+    def __init__(self, feat_dim: int, hidden_dim: int, latent_dim: int, context: bool,
+                 max_depth_embed: int, max_children_embed: int) -> None:
+        super().__init__()
+        self.W1 = nn.Linear(feat_dim, hidden_dim)
+        self.W2 = nn.Linear(latent_dim, hidden_dim, bias=False)
+        self.W3 = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        self.u = nn.Linear(hidden_dim, 1)
+        self.context = context
+        if context:
+            self.depth_emb = nn.Embedding(max_depth_embed + 1, hidden_dim)
+            self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
+
+    def forward(self, x: Tensor, zw: Tensor, inward: Tensor, depth: Tensor,
+                count: Tensor) -> Tensor:
+        """Logits ``[M]``; ``zw`` is ``W2 z`` already gathered per decision."""
+        a = self.W1(x) + zw + self.W3(inward)
+        if self.context:
+            a = a + self.depth_emb(depth.clamp_max(self.depth_emb.num_embeddings - 1))
+            a = a + self.count_emb(count.clamp_max(self.count_emb.num_embeddings - 1))
+        return self.u(torch.relu(a)).squeeze(-1)
+
+
+class TreeDecoder(nn.Module):
+    """Depth-first tree decoder (module docstring).
+
+    Args:
+        feat_dim: feature width ``d`` (normalised units).
+        num_types: number of node types.
+        hidden_dim: message / hidden width ``H``.
+        latent_dim: latent width.
+        topo_context: add depth and child-count embeddings to the topology head.
+        type_mask: optional ``[num_types, d]`` bool (``FeatureSet.type_mask()``): decoded nodes
+            get zeros outside their type's columns, as real inputs have, so that decoding sees
+            what teacher forcing saw. Default: every column belongs to every type.
+        max_depth_embed, max_children_embed: clamps of the context embeddings.
+    """
+
+    def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
+                 topo_context: bool = True, type_mask: Tensor | None = None,
+                 max_depth_embed: int = 32, max_children_embed: int = 16) -> None:
+        super().__init__()
+        self.feat_dim, self.num_types, self.hidden_dim = feat_dim, num_types, hidden_dim
+        self.proj = nn.Linear(feat_dim, hidden_dim, bias=False)
+        self.cell = TreeGRUCell(hidden_dim)
+        self.topo = TopoHead(feat_dim, hidden_dim, latent_dim, topo_context, max_depth_embed,
+                             max_children_embed)
+        self.W1_l = nn.Linear(latent_dim, hidden_dim)
+        self.W2_l = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        self.U_l = nn.Linear(hidden_dim, feat_dim)
+        self.U_c = nn.Linear(hidden_dim, num_types) if num_types > 1 else None
+        mask = torch.ones(num_types, feat_dim, dtype=torch.bool) if type_mask is None else type_mask
+        self.register_buffer("type_mask", mask.bool().clone(), persistent=False)
+
+    def node_heads(self, zl: Tensor, h: Tensor) -> tuple[Tensor, Tensor]:
+        """eq. 10–11: ``(features, type logits)`` from ``zl = W_1^l z`` and ``h = h_{p->c}``."""
+        a = torch.relu(zl + self.W2_l(h))
+        if self.U_c is None:
+            return self.U_l(a), a.new_zeros(a.shape[0], 1)
+        return self.U_l(a), self.U_c(a)
+
+    # --- teacher forcing ----------------------------------------------------------------
+
+    def teacher_forcing(self, z: Tensor, batch: Data,
+                        sched: TreeSchedule | None = None) -> DecoderOutput:
+        """All predictions of the DFS trace of ``batch`` (normalised ``x``) given ``z`` ``[B, l]``.
+
+        Messages are computed level by level (one GRU call per level and direction), then every
+        decision of the batch in one call of the topology head.
+        """
+        sched = tree_schedule(batch) if sched is None else sched
+        cell, levels, parent = self.cell, sched.levels, sched.parent
+        hid = self.hidden_dim
+        px = cell.project(self.proj(batch.x))
+        ups = upward(cell, px, sched)
+        down = [px.new_zeros(levels[0].numel(), hid)]
+        inward = [down[0]]  # per non-root c: messages into p before it expands into c
+        for lv in range(1, len(levels)):
+            nodes = levels[lv]
+            par = parent[nodes]
+            at = sched.pos[par]
+            pxp, dp = px[par], down[lv - 1][at]
+            pre = exclusive_sibling_prefix(torch.cat([ups.up[lv], ups.gated_up[lv]], -1),
+                                           sched.groups[lv], sched.rank[nodes],
+                                           sched.num_groups[lv], sched.max_rank[lv])
+            s = dp + pre[:, :hid]
+            g = cell.gate_p(pxp, dp) + pre[:, hid:]
+            inward.append(s)
+            down.append(cell.step(pxp, s, g))
+        down_n, inward_n = sched.gather(down), sched.gather(inward)
+        total_n = down_n + sched.gather(ups.child_sum)
+        # decisions: expand into each non-root c (made by parent(c)), backtrack from each node
+        n = sched.num_nodes
+        idx = torch.arange(n, device=parent.device)
+        child = idx[parent >= 0]
+        node = torch.cat([parent[child], idx])
+        count = torch.cat([sched.rank[child], sched.num_children])
+        target = torch.cat([torch.ones_like(child), torch.zeros_like(idx)]).float()
+        # DFS-trace order: expand(c) at slot c; backtrack(i) right after i's subtree, deepest first
+        dm = int(sched.depth.max()) if n else 0
+        key_e = child * (dm + 2) + dm + 1
+        key_b = (idx + sched.size) * (dm + 2) + dm - sched.depth
+        order = torch.argsort(torch.cat([key_e, key_b]))
+        node, count, target = node[order], count[order], target[order]
+        which = torch.cat([child, idx + n])[order]  # row in cat([inward_n, total_n])
+        inward_t = torch.cat([inward_n, total_n])[which]
+        graph = sched.graph[node]
+        logits = self.topo(batch.x[node], self.topo.W2(z)[graph], inward_t, sched.depth[node],
+                           count)
+        feat, types = self.node_heads(self.W1_l(z)[sched.graph], down_n)
+        return DecoderOutput(logits, target, graph, node, feat, types)
+
+    forward = teacher_forcing
+
+    # --- greedy decoding ----------------------------------------------------------------
+
+    @torch.no_grad()
+    def decode(self, z: Tensor, max_nodes: int = 256,
+               max_depth: int = 64) -> list[tuple[Tensor, Tensor, Tensor]]:
+        """Greedy autoregressive decoding of ``z`` ``[B, l]`` (or ``[l]``), batched over latents.
+
+        Every active latent advances one DFS step per iteration (one GRU call for all): expand
+        when ``p > 0.5`` (and the tree has fewer than ``max_nodes`` nodes and the child's depth
+        would be at most ``max_depth``), else backtrack; a tree is finished when its root
+        backtracks or it reaches ``max_nodes``. Each tree takes at most ``2 * max_nodes - 1``
+        steps, so decoding always terminates. Node types are ``argmax`` of the type logits.
+
+        Returns:
+            per latent ``(parent, node_type, x)``: pre-order parent vector (root -1), types and
+            normalised features ``[n, d]`` (zero outside the node type's columns).
+
+        Raises:
+            ValueError: when ``z`` holds NaN or infinite values. Huge finite values do not
+                raise (features may then be non-finite; NaN logits mean "backtrack").
+        """
+        z = z[None] if z.dim() == 1 else z
+        if not bool(torch.isfinite(z).all()):
+            bad = (~torch.isfinite(z)).any(1).nonzero().flatten().tolist()
+            raise ValueError(f"latents must be finite; rows {bad[:10]} contain NaN or inf")
+        if max_nodes < 1 or max_depth < 0:
+            raise ValueError("max_nodes must be >= 1 and max_depth >= 0")
+        b, dev, hid = z.shape[0], z.device, self.hidden_dim
+        buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, z.dtype, dev)
+        zl, zt = self.W1_l(z), self.topo.W2(z)
+        lat = torch.arange(b, device=dev)
+        feat, types = self._new_nodes(zl, z.new_zeros(b, hid))
+        cur = buf.add(lat, torch.full_like(lat, -1), torch.zeros_like(lat), types, feat,
+                      self._px(feat), z.new_zeros(b, hid))
+        count = torch.ones_like(lat)
+        active = count < max_nodes
+        for _ in range(2 * max_nodes):
+            act = active.nonzero().flatten()
+            if act.numel() == 0:
+                break
+            i = cur[act]
+            inward = buf.down[i] + buf.csum[i]
+            logit = self.topo(buf.x[i], zt[act], inward, buf.depth[i], buf.nchild[i])
+            expand = (logit > 0) & (buf.depth[i] < max_depth)
+            pxi = buf.px[i]
+            s = torch.where(expand[:, None], inward, buf.csum[i])
+            g = buf.cgated[i] + torch.where(expand[:, None], self.cell.gate_p(pxi, buf.down[i]),
+                                            0.0)
+            h = self.cell.step(pxi, s, g)
+            e, k = expand.nonzero().flatten(), (~expand).nonzero().flatten()
+            if e.numel():  # expanders create a child and move into it
+                be, pe = act[e], i[e]
+                feat, types = self._new_nodes(zl[be], h[e])
+                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, self._px(feat), h[e])
+                buf.nchild[pe] += 1
+                count[be] += 1
+            if k.numel():  # backtrackers send their up message and move to their parent
+                bk, ik = act[k], i[k]
+                par = buf.parent[ik]
+                root = par < 0
+                active[bk[root]] = False
+                up, pk = h[k][~root], par[~root]
+                buf.csum.index_add_(0, pk, up)
+                buf.cgated.index_add_(0, pk, self.cell.gate_p(buf.px[pk], up))
+                cur[bk[~root]] = pk
+            active &= count < max_nodes
+        return buf.split(b)
+
+    def _px(self, x: Tensor) -> Tensor:
+        return self.cell.project(self.proj(x))
+
+    def _new_nodes(self, zl: Tensor, h: Tensor) -> tuple[Tensor, Tensor]:
+        feat, logits = self.node_heads(zl, h)
+        types = logits.argmax(-1)
+        return torch.where(self.type_mask[types], feat, torch.zeros_like(feat)), types
+
+
+class _NodeBuffer:
+    """Growable flat storage of the nodes being decoded (all latents interleaved)."""
+
+    def __init__(self, cap: int, d: int, hid: int, dtype: torch.dtype,
+                 dev: torch.device) -> None:
+        self.n = 0
+        long = {"dtype": torch.long, "device": dev}
+        flt = {"dtype": dtype, "device": dev}
+        self.owner, self.parent = torch.zeros(cap, **long), torch.zeros(cap, **long)
+        self.depth, self.type = torch.zeros(cap, **long), torch.zeros(cap, **long)
+        self.nchild = torch.zeros(cap, **long)
+        self.x = torch.zeros(cap, d, **flt)
+        self.px, self.down = torch.zeros(cap, 3 * hid, **flt), torch.zeros(cap, hid, **flt)
+        self.csum, self.cgated = torch.zeros(cap, hid, **flt), torch.zeros(cap, hid, **flt)
+
+    _FIELDS = ("owner", "parent", "depth", "type", "nchild", "x", "px", "down", "csum", "cgated")
+
+    def add(self, owner: Tensor, parent: Tensor, depth: Tensor, types: Tensor, x: Tensor,
+            px: Tensor, down: Tensor) -> Tensor:
+        """Append nodes (children's ``nchild``/``csum``/``cgated`` start at zero); their ids."""
+        m = owner.numel()
+        if self.n + m > self.owner.shape[0]:
+            cap = max(2 * self.owner.shape[0], self.n + m)
+            for f in self._FIELDS:
+                old = getattr(self, f)
+                new = old.new_zeros((cap, *old.shape[1:]))
+                new[: self.n] = old[: self.n]
+                setattr(self, f, new)
+        ids = torch.arange(self.n, self.n + m, device=owner.device)
+        self.owner[ids], self.parent[ids], self.depth[ids], self.type[ids] = (
+            owner, parent, depth, types)
+        self.x[ids], self.px[ids], self.down[ids] = x, px, down
+        self.n += m
+        return ids
+
+    def split(self, b: int) -> list[tuple[Tensor, Tensor, Tensor]]:
+        """Per latent ``(parent, type, x)`` in creation order (= pre-order), local indices."""
+        n = self.n
+        owner = self.owner[:n]
+        order = torch.argsort(owner, stable=True)
+        counts = torch.bincount(owner, minlength=b)
+        start = torch.cumsum(counts, 0) - counts
+        local = torch.empty_like(owner)
+        local[order] = torch.arange(n, device=owner.device) - start[owner[order]]
+        par = self.parent[:n]
+        par = torch.where(par >= 0, local[par.clamp_min(0)], par)
+        parts = zip(torch.split(par[order], counts.tolist()),
+                    torch.split(self.type[:n][order], counts.tolist()),
+                    torch.split(self.x[:n][order], counts.tolist()))
+        return [(p.clone(), t.clone(), x.clone()) for p, t, x in parts]

@@ -1,0 +1,186 @@
+"""``RoboVAE``: the tree-MPNN VAE as a LightningModule (paper §4.2–4.3).
+
+The module owns the feature :class:`~robovae.data.features.Normalizer` (fitted on the training
+split by the datamodule and stored in every checkpoint), so ``RoboVAE.load_from_checkpoint``
+alone can encode robot files and decode robots in physical units.
+
+Loss (eq. 12–13):  L = Σ_t BCE(p_t, p̂_t) + Σ_j [MSE(f_j, f̂_j) + CE(s_j, ŝ_j)] + β L_KL,
+with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import lightning as L
+import torch
+from torch import Tensor
+from torch_geometric.data import Batch, Data
+
+from robovae.data.features import Normalizer, get_feature_set
+from robovae.data.graph import RobotData, tree_data
+from robovae.model.decoder import TreeDecoder
+from robovae.model.encoder import TreeEncoder, reparametrize
+from robovae.model.loss import vae_loss
+from robovae.model.tree import tree_schedule
+
+
+class RoboVAE(L.LightningModule):
+    """Tree-GRU VAE over robot graphs.
+
+    Args:
+        feature_set: registry name of the node features (must match the data).
+        hidden_dim: message / hidden size of encoder and decoder.
+        latent_dim: size of z.
+        beta: final weight of the KL term (eq. 13).
+        beta_start, beta_warmup_epochs: linear β annealing from ``beta_start``.
+        lr, weight_decay: AdamW settings.
+        lr_schedule: ``cosine`` (to ``lr * lr_min_factor`` over ``max_epochs``) or ``constant``.
+        lr_min_factor: final learning rate as a fraction of ``lr`` for the cosine schedule.
+        max_nodes, max_depth: limits of autoregressive decoding.
+        topo_context: feed depth and child count to the expansion head (beyond eq. 9).
+    """
+
+    def __init__(
+        self,
+        feature_set: str = "paper34",
+        hidden_dim: int = 128,
+        latent_dim: int = 32,
+        beta: float = 1e-3,
+        beta_start: float = 0.0,
+        beta_warmup_epochs: int = 0,
+        lr: float = 1e-3,
+        weight_decay: float = 0.0,
+        lr_schedule: str = "cosine",
+        lr_min_factor: float = 0.05,
+        max_nodes: int = 256,
+        max_depth: int = 64,
+        topo_context: bool = True,
+    ) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        fs = get_feature_set(feature_set)
+        self.feature_set = fs
+        self.normalizer = Normalizer(fs)
+        self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim)
+        self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
+                                   topo_context=topo_context, type_mask=fs.type_mask())
+
+    # --- data in model units -------------------------------------------------------------
+
+    def setup(self, stage: str) -> None:
+        """Take the datamodule's training-split normaliser unless the checkpoint brought one."""
+        dm = getattr(self.trainer, "datamodule", None) if self._trainer else None
+        norm = getattr(dm, "normalizer", None)
+        if norm is not None and norm.feature_set.name != self.feature_set.name:
+            raise ValueError(f"robovae: the model uses feature set {self.feature_set.name!r} "
+                             f"but the data has {norm.feature_set.name!r}")
+        if norm is not None and not bool(self.normalizer.fitted):
+            self.normalizer.load_state_dict(norm.state_dict())
+
+    def normalized(self, batch: Batch) -> Batch:
+        """A shallow copy of ``batch`` whose ``x`` is in model units."""
+        out = batch.clone()
+        out.x = self.normalizer(batch.x.to(self.device), batch.node_type.to(self.device))
+        return out
+
+    # --- training ------------------------------------------------------------------------
+
+    def beta_at(self, epoch: int) -> float:
+        """β of an epoch: linear warm-up from ``beta_start`` to ``beta``."""
+        hp = self.hparams
+        if hp.beta_warmup_epochs <= 0:
+            return hp.beta
+        frac = min(1.0, epoch / hp.beta_warmup_epochs)
+        return hp.beta_start + frac * (hp.beta - hp.beta_start)
+
+    def forward(self, batch: Batch, sample: bool = True) -> dict[str, Tensor]:
+        """Loss terms of a batch of physical-unit robot graphs (teacher forcing)."""
+        nb = self.normalized(batch)
+        sched = tree_schedule(nb)
+        mu, logvar = self.encoder(nb, sched)
+        z = reparametrize(mu, logvar) if sample else mu
+        out = self.decoder.teacher_forcing(z, nb, sched)
+        return vae_loss(out, nb, mu, logvar, self.beta_at(self.current_epoch))
+
+    def _step(self, batch: Batch, stage: str) -> Tensor:
+        terms = self(batch, sample=stage == "train")
+        bs = batch.num_graphs
+        for k in ("loss", "topo", "feat", "type", "kl"):
+            self.log(f"{stage}/{k}", terms[k], batch_size=bs, prog_bar=k == "loss",
+                     on_epoch=True, on_step=False)
+        if stage == "train":
+            self.log("train/beta", self.beta_at(self.current_epoch), batch_size=bs,
+                     on_epoch=True, on_step=False)
+        return terms["loss"]
+
+    def training_step(self, batch: Batch, batch_idx: int) -> Tensor:
+        return self._step(batch, "train")
+
+    def validation_step(self, batch: Batch, batch_idx: int) -> Tensor:
+        return self._step(batch, "val")
+
+    def test_step(self, batch: Batch, batch_idx: int) -> Tensor:
+        return self._step(batch, "test")
+
+    def predict_step(self, batch: Batch, batch_idx: int) -> list[RobotData]:
+        return self.reconstruct(batch)
+
+    def configure_optimizers(self):
+        hp = self.hparams
+        opt = torch.optim.AdamW(self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
+        if hp.lr_schedule == "constant":
+            return opt
+        if hp.lr_schedule != "cosine":
+            raise ValueError(f"robovae: unknown lr_schedule {hp.lr_schedule!r}")
+        epochs = max(1, self.trainer.max_epochs or 1)
+        floor = hp.lr_min_factor
+
+        def factor(epoch: int) -> float:
+            return floor + (1 - floor) * 0.5 * (1 + math.cos(math.pi * min(epoch, epochs) / epochs))
+
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, factor)
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "epoch"}}
+
+    # --- the public API ------------------------------------------------------------------
+
+    @torch.no_grad()
+    def encode(self, batch: Batch | Data) -> tuple[Tensor, Tensor]:
+        """``(mu, logvar)`` of each robot of a (physical-unit) batch."""
+        if not isinstance(batch, Batch):
+            batch = Batch.from_data_list([batch])
+        return self.encoder(self.normalized(batch.to(self.device)))
+
+    @torch.no_grad()
+    def decode(self, z: Tensor, max_nodes: int | None = None,
+               max_depth: int | None = None) -> list[RobotData]:
+        """Greedy autoregressive decoding of latents ``z`` [B, latent] into robot graphs with
+        physical feature values."""
+        hp = self.hparams
+        trees = self.decoder.decode(z.to(self.device), max_nodes=max_nodes or hp.max_nodes,
+                                    max_depth=max_depth or hp.max_depth)
+        out = []
+        for i, (parent, node_type, x) in enumerate(trees):
+            phys = self.normalizer.inverse(x, node_type)
+            out.append(tree_data(parent.cpu(), node_type.cpu(), phys.cpu(), self.feature_set,
+                                 name=f"decoded_{i}", source="robovae.decode"))
+        return out
+
+    @torch.no_grad()
+    def reconstruct(self, batch: Batch | Data) -> list[RobotData]:
+        """Encode (z = mu) and decode each robot; names follow the inputs."""
+        if not isinstance(batch, Batch):
+            batch = Batch.from_data_list([batch])
+        mu, _ = self.encode(batch)
+        out = self.decode(mu)
+        names = batch.name if isinstance(batch.name, list) else [batch.name]
+        for d, name in zip(out, names):
+            d.name = name
+        return out
+
+    @torch.no_grad()
+    def sample(self, n: int, temperature: float = 1.0,
+               generator: torch.Generator | None = None) -> list[RobotData]:
+        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)``."""
+        z = torch.randn(n, self.hparams.latent_dim, generator=generator) * temperature
+        return self.decode(z)

@@ -1,0 +1,161 @@
+"""Tree decoder: DFS-trace labels, greedy decoding limits, decode == teacher forcing, gradients."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+import torch
+from torch_geometric.data import Batch
+
+from robovae.data.features import get_feature_set
+from robovae.data.graph import _is_preorder, children, tree_data
+from robovae.model.decoder import TreeDecoder
+from robovae.model.encoder import TreeEncoder, reparametrize
+from robovae.model.loss import vae_loss
+
+FULL = get_feature_set("full")
+
+
+def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
+    """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
+    parent, stack = [-1], [0]
+    for i in range(1, n):
+        while len(stack) > 1 and rng.random() < pop:
+            stack.pop()
+        parent.append(stack[-1])
+        stack.append(i)
+    return parent
+
+
+def random_tree(n: int, rng: random.Random, pop: float = 0.5):
+    return tree_data(random_parent(n, rng, pop), [rng.randrange(3) for _ in range(n)],
+                     torch.randn(n, FULL.dim), FULL)
+
+
+def dfs_trace(parent: list[int]) -> list[tuple[int, int]]:
+    """(deciding node, label) of the true depth-first expand/backtrack sequence."""
+    kids, out = children(parent), []
+
+    def visit(i: int) -> None:
+        for c in kids[i]:
+            out.append((i, 1))
+            visit(c)
+        out.append((i, 0))
+
+    visit(0)
+    return out
+
+
+def make_decoder(seed: int = 0, **kw) -> TreeDecoder:
+    torch.manual_seed(seed)
+    return TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask(), **kw).eval()
+
+
+def test_teacher_forcing_labels_follow_dfs() -> None:
+    rng = random.Random(0)
+    trees = [random_tree(1, rng), random_tree(20, rng, 0.0), random_tree(9, rng, 1.0)]
+    trees += [random_tree(rng.randint(2, 30), rng, rng.random()) for _ in range(10)]
+    batch = Batch.from_data_list(trees)
+    dec = make_decoder()
+    out = dec.teacher_forcing(torch.randn(len(trees), 8), batch)
+    n = batch.num_nodes
+    assert out.topo_logits.shape == out.topo_target.shape == (2 * n - len(trees),)
+    assert out.feat_pred.shape == (n, FULL.dim) and out.type_logits.shape == (n, 3)
+    for g, t in enumerate(trees):
+        sel = out.topo_graph == g
+        node = (out.topo_node[sel] - batch.ptr[g]).tolist()
+        assert list(zip(node, out.topo_target[sel].long().tolist())) == dfs_trace(
+            t.parent.tolist())
+    assert bool((out.topo_graph.diff() >= 0).all())
+
+
+def check_tree(parent: torch.Tensor, types: torch.Tensor, x: torch.Tensor, max_nodes: int,
+               max_depth: int) -> int:
+    """Assert a decoded tree is a valid pre-order tree within the limits; return its depth."""
+    n = parent.numel()
+    assert 1 <= n <= max_nodes and types.shape == (n,) and x.shape == (n, FULL.dim)
+    assert parent[0] == -1 and _is_preorder(parent.tolist())
+    assert bool((types >= 0).all() and (types < 3).all())
+    t = tree_data(parent, types, torch.nan_to_num(x), FULL)
+    depth = int(t.depth.max())
+    assert depth <= max_depth
+    return depth
+
+
+@pytest.mark.parametrize("bias", [50.0, 0.0, -50.0])
+def test_decode_respects_limits(bias: float) -> None:
+    dec = make_decoder()
+    with torch.no_grad():
+        dec.topo.u.bias.add_(bias)
+    scale = torch.tensor([1.0, 3.0, 1e6, 1e30] * 3)
+    z = torch.randn(12, 8) * scale[:, None]
+    out = dec.decode(z, max_nodes=40, max_depth=5)
+    assert len(out) == 12
+    for (p, t, x), s in zip(out, scale.tolist()):
+        depth = check_tree(p, t, x, 40, 5)
+        if bias > 0 and s < 10:  # always expands: fills the budget, never deeper than allowed
+            assert p.numel() == 40 and depth == 5
+        if bias < 0 and s < 10:  # never expands (huge latents overwhelm any bias)
+            assert p.numel() == 1
+    assert len(dec.decode(z[0])) == 1  # a single latent vector
+    assert dec.decode(z[:2], max_nodes=1)[0][0].tolist() == [-1]
+
+
+def test_decode_rejects_nonfinite() -> None:
+    dec = make_decoder()
+    z = torch.zeros(3, 8)
+    z[1, 2] = float("nan")
+    with pytest.raises(ValueError, match="rows \\[1\\]"):
+        dec.decode(z)
+    z[1, 2] = float("inf")
+    with pytest.raises(ValueError, match="finite"):
+        dec.decode(z)
+
+
+def test_decode_matches_teacher_forcing() -> None:
+    """Greedy decoding makes exactly the decisions teacher forcing scores on its own output."""
+    dec = make_decoder(seed=2)
+    z = torch.randn(16, 8) * 2
+    max_nodes, max_depth = 200, 30
+    decoded = dec.decode(z, max_nodes=max_nodes, max_depth=max_depth)
+    trees = [tree_data(p, t, x, FULL) for p, t, x in decoded]
+    sizes = [t.num_nodes for t in trees]
+    assert len(set(sizes)) > 5 and max(s for s in sizes if s < max_nodes) > 10
+    with torch.no_grad():
+        out = dec.teacher_forcing(z, Batch.from_data_list(trees))
+    mask = FULL.type_mask()[torch.cat([t.node_type for t in trees])]
+    torch.testing.assert_close(torch.where(mask, out.feat_pred, 0.0),
+                               torch.cat([t.x for t in trees]), atol=1e-5, rtol=1e-5)
+    assert torch.equal(out.type_logits.argmax(-1), torch.cat([t.node_type for t in trees]))
+    expand = out.topo_target == 1
+    assert bool((out.topo_logits[expand] > 0).all())
+    for g, t in enumerate(trees):  # untruncated trees: every backtrack was a "no"
+        if t.num_nodes < max_nodes and int(t.depth.max()) < max_depth:
+            sel = (out.topo_graph == g) & ~expand
+            assert bool((out.topo_logits[sel] <= 0).all())
+
+
+def test_topo_context_off_is_eq9() -> None:
+    dec = make_decoder(topo_context=False)
+    assert not hasattr(dec.topo, "depth_emb")
+    x, z, inward = torch.randn(4, FULL.dim), torch.randn(4, 8), torch.randn(4, 32)
+    depth = count = torch.zeros(4, dtype=torch.long)
+    h = torch.relu(dec.topo.W1(x) + dec.topo.W2(z) + dec.topo.W3(inward))
+    torch.testing.assert_close(dec.topo(x, dec.topo.W2(z), inward, depth, count),
+                               dec.topo.u(h).squeeze(-1))
+
+
+def test_every_parameter_gets_a_gradient() -> None:
+    torch.manual_seed(0)
+    rng = random.Random(0)
+    batch = Batch.from_data_list([random_tree(rng.randint(1, 25), rng, rng.random())
+                                  for _ in range(8)])
+    enc = TreeEncoder(FULL.dim, 32, 8)
+    dec = TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask())
+    mu, logvar = enc(batch)
+    losses = vae_loss(dec.teacher_forcing(reparametrize(mu, logvar), batch), batch, mu, logvar,
+                      beta=1.0)
+    losses["loss"].backward()
+    for name, p in [*enc.named_parameters(), *dec.named_parameters()]:
+        assert p.grad is not None and bool(p.grad.abs().sum() > 0), name

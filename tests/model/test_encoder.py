@@ -1,0 +1,116 @@
+"""Tree encoder: level schedule, equality with the naive per-edge encoder, batching invariance."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+import torch
+from torch_geometric.data import Batch
+
+from robovae.data.graph import children, tree_data
+from robovae.model.encoder import TreeEncoder, reparametrize
+from robovae.model.tree import encode_reference, exclusive_sibling_prefix, tree_schedule
+
+
+def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
+    """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
+    parent, stack = [-1], [0]
+    for i in range(1, n):
+        while len(stack) > 1 and rng.random() < pop:
+            stack.pop()
+        parent.append(stack[-1])
+        stack.append(i)
+    return parent
+
+
+def random_tree(n: int, rng: random.Random, pop: float = 0.5, fs: str = "full"):
+    types = [rng.randrange(3 if fs == "full" else 1) for _ in range(n)]
+    x = torch.randn(n, 62 if fs == "full" else 5)
+    return tree_data(random_parent(n, rng, pop), types, x, fs)
+
+
+def varied_trees(count: int, seed: int = 0, fs: str = "full") -> list:
+    rng = random.Random(seed)
+    trees = [random_tree(1, rng, fs=fs), random_tree(40, rng, pop=0.0, fs=fs),
+             random_tree(12, rng, pop=1.0, fs=fs)]
+    while len(trees) < count:
+        trees.append(random_tree(rng.randint(2, 40), rng, pop=rng.random(), fs=fs))
+    return trees
+
+
+def test_schedule_matches_naive() -> None:
+    trees = varied_trees(10, seed=1)
+    batch = Batch.from_data_list(trees)
+    s = tree_schedule(batch)
+    off = 0
+    for t in trees:
+        kids = children(t.parent)
+        n = t.num_nodes
+        assert s.num_children[off:off + n].tolist() == [len(k) for k in kids]
+        for ks in kids:
+            for r, c in enumerate(ks):
+                assert int(s.rank[off + c]) == r
+        size = [1] * n
+        for i in reversed(range(1, n)):
+            size[t.parent[i]] += size[i]
+        assert s.size[off:off + n].tolist() == size
+        off += n
+    for lv, nodes in enumerate(s.levels):
+        assert bool((s.depth[nodes] == lv).all()) and bool((nodes.diff() > 0).all())
+        assert torch.equal(s.pos[nodes], torch.arange(nodes.numel()))
+    assert torch.equal(s.gather([s.depth[lv] for lv in s.levels]), s.depth)
+
+
+def test_exclusive_sibling_prefix() -> None:
+    vals = torch.arange(1.0, 7.0)[:, None]
+    groups, rank = torch.tensor([0, 0, 0, 1, 2, 2]), torch.tensor([0, 1, 2, 0, 0, 1])
+    out = exclusive_sibling_prefix(vals, groups, rank, 3, 2)
+    assert out.flatten().tolist() == [0.0, 1.0, 3.0, 0.0, 0.0, 5.0]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_matches_reference(seed: int) -> None:
+    torch.manual_seed(seed)
+    enc = TreeEncoder(62, 32, 8)
+    for t in varied_trees(8, seed=seed):
+        mu, logvar = enc(t)
+        mu_r, logvar_r = encode_reference(enc, t)
+        torch.testing.assert_close(mu, mu_r, atol=1e-5, rtol=1e-5)
+        torch.testing.assert_close(logvar, logvar_r, atol=1e-5, rtol=1e-5)
+
+
+def test_batching_invariance() -> None:
+    torch.manual_seed(0)
+    enc = TreeEncoder(62, 32, 8).eval()
+    trees = varied_trees(64, seed=3)
+    mu, logvar = enc(Batch.from_data_list(trees))
+    assert mu.shape == (64, 8) == logvar.shape
+    for i, t in enumerate(trees):
+        m1, l1 = enc(Batch.from_data_list([t]))
+        torch.testing.assert_close(mu[i:i + 1], m1, atol=1e-5, rtol=0)
+        torch.testing.assert_close(logvar[i:i + 1], l1, atol=1e-5, rtol=0)
+
+
+def test_single_data_and_leaf_readout() -> None:
+    torch.manual_seed(0)
+    enc = TreeEncoder(5, 16, 4)
+    t = random_tree(1, random.Random(0), fs="random5")
+    mu, _ = enc(t)  # a plain Data (no batch vector) works
+    xp = enc.proj(t.x)
+    h = torch.relu(enc.W_e(xp) + enc.U_e(torch.zeros_like(xp)))  # the root is the only leaf
+    torch.testing.assert_close(mu, enc.mu(h))
+
+
+def test_reparametrize() -> None:
+    mu, logvar = torch.randn(4, 3), torch.full((4, 3), -60.0)
+    torch.testing.assert_close(reparametrize(mu, logvar), mu)
+    assert not torch.equal(reparametrize(mu, torch.zeros(4, 3)), mu)
+
+
+def test_bad_depth_raises() -> None:
+    t = random_tree(5, random.Random(0))
+    t.depth = t.depth.clone()
+    t.depth[3] += 1
+    with pytest.raises(ValueError, match="pre-order"):
+        tree_schedule(t)

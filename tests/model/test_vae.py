@@ -1,0 +1,145 @@
+"""RoboVAE as a LightningModule: overfitting Go2, checkpoints that carry the normaliser,
+the public API, and the Lightning CLI with its loggers."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import lightning as L
+import pytest
+import torch
+from torch_geometric.data import Batch
+
+from robovae.cli import main
+from robovae.data.datamodule import RobotDataModule
+from robovae.evaluate.callbacks import ReconstructionMetrics, score_split
+from robovae.model.vae import RoboVAE
+from tests.conftest import REPO
+
+
+def _trainer(tmp_path: Path, epochs: int, **kw) -> L.Trainer:
+    return L.Trainer(max_epochs=epochs, accelerator="cpu", devices=1, logger=False,
+                     enable_checkpointing=False, enable_progress_bar=False,
+                     enable_model_summary=False, default_root_dir=tmp_path, **kw)
+
+
+def test_overfit_go2(tmp_path, menagerie_dir, cache_root):
+    """The paper's first check: one robot, RA 100 % and FRE ~ 0 (here < 1e-4)."""
+    L.seed_everything(0)
+    dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root), train_names=["go2"],
+                         test_names=["go2"], val_is_train=True, batch_size=1)
+    model = RoboVAE(beta=1e-4, lr=3e-3)
+    _trainer(tmp_path, 600, check_val_every_n_epoch=600).fit(model, dm)
+    (res,) = score_split(model.eval(), dm.test_set)
+    assert res.ra == 1.0 and res.exact
+    assert res.fre < 1e-4
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A small model trained a few epochs on the zoo, with its datamodule and checkpoint."""
+    tmp = tmp_path_factory.mktemp("zoo")
+    L.seed_everything(0)
+    dm = RobotDataModule(["zoo"], root=str(tmp / "cache"),
+                         test_names=["gym_half_cheetah", "gym_hopper"], batch_size=8)
+    model = RoboVAE(hidden_dim=32, latent_dim=8, max_nodes=64)
+    trainer = _trainer(tmp, 2, limit_train_batches=2)
+    trainer.fit(model, dm)
+    ckpt = tmp / "model.ckpt"
+    trainer.save_checkpoint(ckpt)
+    return model.eval(), dm, ckpt
+
+
+def test_checkpoint_alone_decodes_the_same_robot(trained):
+    model, dm, ckpt = trained
+    loaded = RoboVAE.load_from_checkpoint(ckpt).eval()
+    assert bool(loaded.normalizer.fitted)
+    assert torch.equal(loaded.normalizer.mean, dm.normalizer.mean)
+    robot = dm.test_set[0]
+    a, b = model.reconstruct(robot)[0], loaded.reconstruct(robot)[0]
+    assert torch.equal(a.parent, b.parent) and torch.equal(a.node_type, b.node_type)
+    assert torch.allclose(a.x, b.x)
+
+
+def test_public_api(trained):
+    model, dm, _ = trained
+    batch = Batch.from_data_list(list(dm.test_set))
+    mu, logvar = model.encode(batch)
+    assert mu.shape == logvar.shape == (2, 8)
+    decoded = model.decode(mu)
+    assert len(decoded) == 2 and all(d.num_nodes <= 64 for d in decoded)
+    assert [d.name for d in model.reconstruct(batch)] == ["gym_half_cheetah", "gym_hopper"]
+    samples = model.sample(5, generator=torch.Generator().manual_seed(0))
+    again = model.sample(5, generator=torch.Generator().manual_seed(0))
+    assert [s.num_nodes for s in samples] == [s.num_nodes for s in again]
+    for s in samples:  # physical units, own columns only, finite
+        assert torch.isfinite(s.x).all() and (s.x[~s.x_mask] == 0).all()
+
+
+def test_beta_annealing():
+    model = RoboVAE(beta=0.1, beta_start=0.0, beta_warmup_epochs=10)
+    assert model.beta_at(0) == 0.0 and model.beta_at(5) == pytest.approx(0.05)
+    assert model.beta_at(50) == pytest.approx(0.1)
+
+
+def test_feature_set_mismatch_is_refused(cache_root, tmp_path):
+    dm = RobotDataModule(["synthetic:n=4,nodes=5,dim=5"], feature_set="random5",
+                         root=str(cache_root))
+    with pytest.raises(ValueError, match="feature set 'paper34'"):
+        _trainer(tmp_path, 1).fit(RoboVAE(feature_set="paper34"), dm)
+
+
+def _cli_args(tmp_path: Path, *extra: str) -> list[str]:
+    return ["--config", str(REPO / "configs" / "zoo.yaml"),
+            "--trainer.max_epochs=2", "--trainer.enable_progress_bar=false",
+            "--trainer.limit_train_batches=2", f"--data.root={tmp_path / 'cache'}",
+            "--model.hidden_dim=32", "--model.latent_dim=8", "--model.max_nodes=64",
+            "--metrics.every_n_epochs=1", "--trainer.check_val_every_n_epoch=1",
+            f"--checkpoint.dirpath={tmp_path / 'ckpt'}", *extra]
+
+
+def test_cli_fit_then_test_with_csv_logger(tmp_path, capsys):
+    logs = tmp_path / "runs"
+    assert main(["fit", *_cli_args(tmp_path, f"--trainer.logger.init_args.save_dir={logs}")]) == 0
+    ckpt = tmp_path / "ckpt" / "last.ckpt"
+    assert ckpt.is_file()
+    (metrics,) = logs.glob("robovae/version_*/metrics.csv")
+    header = next(csv.reader(metrics.open()))
+    for key in ["train/loss", "train/topo", "train/feat", "train/type", "train/kl",
+                "val/loss", "val/RA", "val/RA_true", "val/exact", "val/FRE"]:
+        assert key in header, key
+    assert main(["test", *_cli_args(tmp_path, f"--trainer.logger.init_args.save_dir={logs}"),
+                 f"--ckpt_path={ckpt}"]) == 0
+    out = capsys.readouterr().out
+    assert "test/RA" in out and "test/FRE" in out
+
+
+def test_cli_fit_with_wandb_offline(tmp_path, monkeypatch):
+    pytest.importorskip("wandb")
+    monkeypatch.setenv("WANDB_SILENT", "true")
+    monkeypatch.setenv("WANDB_DIR", str(tmp_path))
+    args = _cli_args(tmp_path, "--config", str(REPO / "configs" / "loggers" / "wandb.yaml"),
+                     f"--trainer.logger.init_args.save_dir={tmp_path / 'wb'}")
+    assert main(["fit", *args]) == 0
+    runs = list((tmp_path / "wb").glob("wandb/offline-run-*"))
+    assert runs, "no offline wandb run folder"
+    assert any(p.suffix == ".wandb" for p in runs[0].iterdir())
+
+
+def test_print_config(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["fit", "--config", str(REPO / "configs" / "zoo.yaml"), "--print_config"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert "hidden_dim: 128" in out and "feature_set: paper34" in out
+
+
+def test_reconstruction_callback_logs_per_robot(trained, tmp_path):
+    model, dm, _ = trained
+    cb = ReconstructionMetrics(every_n_epochs=1)
+    trainer = _trainer(tmp_path, 1, callbacks=[cb], limit_train_batches=1)
+    trainer.test(model, dm, verbose=False)
+    assert {"test/RA", "test/RA_true", "test/exact"} <= set(trainer.callback_metrics)
+    assert "test/RA/gym_hopper" in trainer.callback_metrics
+    assert len(cb.last["test"]) == 2
