@@ -4,7 +4,13 @@ per-tree reference loop, and the encoder against its naive per-edge reference.
 Datasets: the 17 Menagerie robots (``--menagerie``, default ``../shared/menagerie``) and
 ``--procedural`` procedural robots. One training step = forward + backward + AdamW step.
 
+Also measured: the time of one training step on the 17 Menagerie robots in one batch (the
+paper's setting), and with ``--lightning-epochs N`` the steady-state epochs/s of
+``Trainer.fit`` on them (one batch of 17 per epoch, progress bar, logger and checkpointing off;
+the paper trains 1500 epochs).
+
     python benchmarks/train_speed.py --procedural 1000 --steps 5
+    python benchmarks/train_speed.py --procedural 0 --lightning-epochs 300 --threads 1
 """
 
 from __future__ import annotations
@@ -62,6 +68,54 @@ def _encoder_rate(model: RoboVAE, graphs: list, naive: bool) -> float:
     return len(graphs) / (time.perf_counter() - t)
 
 
+def _step_ms(model: RoboVAE, batch: Batch, steps: int = 30) -> tuple[float, float]:
+    """(median, min) milliseconds of one training step on ``batch``."""
+    opt = torch.optim.AdamW(model.parameters(), lr=1e-3)
+    times = []
+    for i in range(steps + 5):
+        t = time.perf_counter()
+        opt.zero_grad()
+        model(batch)["loss"].backward()
+        opt.step()
+        if i >= 5:
+            times.append(1000 * (time.perf_counter() - t))
+    times.sort()
+    return times[len(times) // 2], times[0]
+
+
+def _lightning_rate(menagerie: str, root: Path, epochs: int) -> float:
+    """Steady-state epochs/s of ``Trainer.fit`` on the 17 robots (epochs 10.. timed)."""
+    import logging
+    import warnings
+
+    import lightning as L
+
+    from robovae.data.datamodule import RobotDataModule
+
+    warnings.filterwarnings("ignore", ".*does not have many workers.*")
+    warnings.filterwarnings("ignore", ".*smaller than the logging interval.*")
+    warnings.filterwarnings("ignore", ".*LeafSpec.*")
+    logging.getLogger("lightning.pytorch").setLevel(logging.WARNING)
+
+    class Clock(L.Callback):
+        start = 0.0
+
+        def on_train_epoch_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
+            if trainer.current_epoch == 10:
+                self.start = time.perf_counter()
+
+    L.seed_everything(0, verbose=False)
+    dm = RobotDataModule([f"dir:{menagerie}"], root=str(root), val_fraction=0.0,
+                         test_fraction=0.0, val_is_train=True, batch_size=17)
+    clock = Clock()
+    trainer = L.Trainer(max_epochs=epochs, accelerator="cpu", devices=1, logger=False,
+                        enable_checkpointing=False, enable_progress_bar=False,
+                        enable_model_summary=False, num_sanity_val_steps=0,
+                        check_val_every_n_epoch=epochs + 1, callbacks=[clock])
+    trainer.fit(RoboVAE(beta=1e-4, lr=3e-3), dm)
+    return (epochs - 10) / (time.perf_counter() - clock.start)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--menagerie", default="../shared/menagerie")
@@ -69,7 +123,12 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=5, help="timed steps per measurement")
     p.add_argument("--batch-sizes", default="1,16,64")
     p.add_argument("--hidden", type=int, default=128)
+    p.add_argument("--threads", type=int, default=0, help="torch threads (0: default)")
+    p.add_argument("--lightning-epochs", type=int, default=0,
+                   help="also time Trainer.fit on the 17 robots for this many epochs")
     args = p.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
     torch.manual_seed(0)
     root = Path(tempfile.mkdtemp(prefix="robovae_speed_"))
     sets = {}
@@ -94,6 +153,13 @@ def main() -> None:
                          "level-scheduled graphs/s": f"{fast:.1f}",
                          "per-tree loop graphs/s": f"{ref:.1f}",
                          "speed-up": f"{fast / ref:.1f}x"})
+        if name == "menagerie17":
+            median, best = _step_ms(model, Batch.from_data_list(graphs))
+            rows.append({"dataset": name, "nodes/graph": f"{nodes:.0f}",
+                         "batch": f"{len(graphs)} (all)",
+                         "level-scheduled graphs/s": f"{1000 * len(graphs) / median:.1f}",
+                         "per-tree loop graphs/s": f"step {median:.1f} ms (min {best:.1f})",
+                         "speed-up": ""})
         enc_fast = _encoder_rate(model, graphs, naive=False)
         enc_naive = _encoder_rate(model, graphs, naive=True)
         rows.append({"dataset": name, "nodes/graph": f"{nodes:.0f}", "batch": "encoder only",
@@ -102,6 +168,10 @@ def main() -> None:
                      "speed-up": f"{enc_fast / enc_naive:.1f}x"})
     print(format_table(rows, ["dataset", "nodes/graph", "batch", "level-scheduled graphs/s",
                               "per-tree loop graphs/s", "speed-up"]))
+    if args.lightning_epochs and "menagerie17" in sets:
+        rate = _lightning_rate(args.menagerie, root, max(args.lightning_epochs, 20))
+        print(f"Trainer.fit, 17 Menagerie robots, batch 17: {rate:.1f} epochs/s "
+              f"({1000 / rate:.1f} ms/epoch; 1500 epochs ~ {1500 / rate:.0f} s + start-up)")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"threads: {torch.get_num_threads()}, hidden {args.hidden}, peak RSS {peak:.0f} MiB")
 

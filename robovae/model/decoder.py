@@ -33,13 +33,7 @@ import torch
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
-from robovae.model.tree import (
-    TreeGRUCell,
-    TreeSchedule,
-    exclusive_sibling_prefix,
-    tree_schedule,
-    upward,
-)
+from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
 
 
 @dataclass
@@ -88,6 +82,35 @@ class TopoHead(nn.Module):
         return self.u(torch.relu(a)).squeeze(-1)
 
 
+def decision_index(sched: TreeSchedule) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
+    """The ``T = 2N - B`` topology decisions of a batch in DFS-trace order (cached on ``sched``).
+
+    Returns ``(node, count, target, which, graph)``: deciding node, its number of children so
+    far, label (1 expand / 0 backtrack), row of the decision's inward message sum in
+    ``cat([sdown, total])`` (level order, :func:`~robovae.model.tree.level_messages`) and graph.
+    """
+    if "decisions" in sched.cache:
+        return sched.cache["decisions"]
+    parent = sched.parent
+    n = sched.num_nodes
+    idx = torch.arange(n, device=parent.device)
+    child = idx[parent >= 0]
+    # expand into each non-root c (made by parent(c)), backtrack from each node
+    node = torch.cat([parent[child], idx])
+    count = torch.cat([sched.rank[child], sched.num_children])
+    target = torch.cat([torch.ones_like(child), torch.zeros_like(idx)]).float()
+    # DFS-trace order: expand(c) at slot c; backtrack(i) right after i's subtree, deepest first
+    dm = len(sched.sizes) - 1
+    key_e = child * (dm + 2) + dm + 1
+    key_b = (idx + sched.size) * (dm + 2) + dm - sched.depth
+    order = torch.argsort(torch.cat([key_e, key_b]))
+    node, count, target = node[order], count[order], target[order]
+    which = torch.cat([sched.inv[child], sched.inv + n])[order]
+    out = (node, count, target, which, sched.graph[node])
+    sched.cache["decisions"] = out
+    return out
+
+
 class TreeDecoder(nn.Module):
     """Depth-first tree decoder (module docstring).
 
@@ -128,54 +151,31 @@ class TreeDecoder(nn.Module):
 
     # --- teacher forcing ----------------------------------------------------------------
 
-    def teacher_forcing(self, z: Tensor, batch: Data,
-                        sched: TreeSchedule | None = None) -> DecoderOutput:
+    def teacher_forcing(self, z: Tensor, batch: Data, sched: TreeSchedule | None = None,
+                        messages: tuple[Tensor, Tensor, Tensor] | None = None) -> DecoderOutput:
         """All predictions of the DFS trace of ``batch`` (normalised ``x``) given ``z`` ``[B, l]``.
 
-        Messages are computed level by level (one GRU call per level and direction), then every
-        decision of the batch in one call of the topology head.
+        Messages are computed level by level (:func:`~robovae.model.tree.level_messages`), then
+        every decision of the batch in one call of the topology head. ``messages`` (``(down,
+        total, sdown)`` of this decoder's cell, level order, ``[N, H]`` each) skips the message
+        passes when they were already computed (e.g. together with the encoder's).
         """
         sched = tree_schedule(batch) if sched is None else sched
-        cell, levels, parent = self.cell, sched.levels, sched.parent
-        hid = self.hidden_dim
-        px = cell.project(self.proj(batch.x))
-        ups = upward(cell, px, sched)
-        down = [px.new_zeros(levels[0].numel(), hid)]
-        inward = [down[0]]  # per non-root c: messages into p before it expands into c
-        for lv in range(1, len(levels)):
-            nodes = levels[lv]
-            par = parent[nodes]
-            at = sched.pos[par]
-            pxp, dp = px[par], down[lv - 1][at]
-            pre = exclusive_sibling_prefix(torch.cat([ups.up[lv], ups.gated_up[lv]], -1),
-                                           sched.groups[lv], sched.rank[nodes],
-                                           sched.num_groups[lv], sched.max_rank[lv])
-            s = dp + pre[:, :hid]
-            g = cell.gate_p(pxp, dp) + pre[:, hid:]
-            inward.append(s)
-            down.append(cell.step(pxp, s, g))
-        down_n, inward_n = sched.gather(down), sched.gather(inward)
-        total_n = down_n + sched.gather(ups.child_sum)
-        # decisions: expand into each non-root c (made by parent(c)), backtrack from each node
-        n = sched.num_nodes
-        idx = torch.arange(n, device=parent.device)
-        child = idx[parent >= 0]
-        node = torch.cat([parent[child], idx])
-        count = torch.cat([sched.rank[child], sched.num_children])
-        target = torch.cat([torch.ones_like(child), torch.zeros_like(idx)]).float()
-        # DFS-trace order: expand(c) at slot c; backtrack(i) right after i's subtree, deepest first
-        dm = int(sched.depth.max()) if n else 0
-        key_e = child * (dm + 2) + dm + 1
-        key_b = (idx + sched.size) * (dm + 2) + dm - sched.depth
-        order = torch.argsort(torch.cat([key_e, key_b]))
-        node, count, target = node[order], count[order], target[order]
-        which = torch.cat([child, idx + n])[order]  # row in cat([inward_n, total_n])
-        inward_t = torch.cat([inward_n, total_n])[which]
-        graph = sched.graph[node]
-        logits = self.topo(batch.x[node], self.topo.W2(z)[graph], inward_t, sched.depth[node],
-                           count)
-        feat, types = self.node_heads(self.W1_l(z)[sched.graph], down_n)
+        if messages is None:
+            px = self.project_levels(batch.x, sched)
+            messages = tuple(t[0] for t in level_messages([self.cell], px[None], sched, 0))
+        down, total, sdown = messages
+        node, count, target, which, graph = decision_index(sched)
+        inward_t = torch.cat([sdown, total]).index_select(0, which)
+        logits = self.topo(batch.x.index_select(0, node), self.topo.W2(z).index_select(0, graph),
+                           inward_t, sched.depth.index_select(0, node), count)
+        feat, types = self.node_heads(self.W1_l(z).index_select(0, sched.graph),
+                                      down.index_select(0, sched.inv))
         return DecoderOutput(logits, target, graph, node, feat, types)
+
+    def project_levels(self, x: Tensor, sched: TreeSchedule) -> Tensor:
+        """``cell.project(proj(x))`` with the rows in level order, ``[N, 3H]``."""
+        return self.cell.project(x.index_select(0, sched.order), self.proj.weight)
 
     forward = teacher_forcing
 

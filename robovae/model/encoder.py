@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import torch
+import torch.nn.functional as F
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
-from robovae.model.tree import TreeGRUCell, TreeSchedule, tree_schedule, upward
+from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
 
 
 def reparametrize(mu: Tensor, logvar: Tensor) -> Tensor:
@@ -41,31 +42,25 @@ class TreeEncoder(nn.Module):
         self.mu = nn.Linear(hidden_dim, latent_dim)
         self.logvar = nn.Linear(hidden_dim, latent_dim)
 
-    def messages(self, xp: Tensor, sched: TreeSchedule) -> tuple[Tensor, Tensor]:
-        """``(up, down)``, ``[N, H]`` each, node order: ``up[c] = m_{c->parent}``,
-        ``down[c] = m_{parent->c}`` (zeros at the roots)."""
-        cell, levels = self.cell, sched.levels
-        px = cell.project(xp)
-        ups = upward(cell, px, sched)
-        down = [xp.new_zeros(levels[0].numel(), xp.shape[1])]
-        for lv in range(1, len(levels)):
-            par = sched.parent[levels[lv]]
-            at = sched.pos[par]
-            pxp, dp = px[par], down[lv - 1][at]
-            # incoming into p except from c: (parent -> p) + all children of p - c
-            s = dp + ups.child_sum[lv - 1][at] - ups.up[lv]
-            g = cell.gate_p(pxp, dp) + ups.child_gated[lv - 1][at] - ups.gated_up[lv]
-            down.append(cell.step(pxp, s, g))
-        return sched.gather(ups.up), sched.gather(down)
-
     def forward(self, batch: Data, sched: TreeSchedule | None = None) -> tuple[Tensor, Tensor]:
         """``(mu, logvar)``, ``[B, latent]`` each, for a ``Batch`` (or one ``Data``)."""
         sched = tree_schedule(batch) if sched is None else sched
-        xp = self.proj(batch.x)
-        up, down = self.messages(xp, sched)
-        nonroot = sched.parent >= 0
-        inward = down + torch.zeros_like(up).index_add(0, sched.parent[nonroot], up[nonroot])
-        h = torch.relu(self.W_e(xp) + self.U_e(inward))
-        leaf = sched.num_children == 0
-        h_g = h.new_zeros(sched.num_graphs, h.shape[1]).index_add(0, sched.graph[leaf], h[leaf])
-        return self.mu(h_g), self.logvar(h_g)
+        x = batch.x.index_select(0, sched.order)  # level order
+        px = self.cell.project(x, self.proj.weight)
+        _, total, _ = level_messages([self.cell], px[None], sched, 1)
+        return self.readout(x, total[0], sched)
+
+    def readout(self, x: Tensor, inward: Tensor, sched: TreeSchedule) -> tuple[Tensor, Tensor]:
+        """eq. 5–7 and the heads from level-order ``x`` (``[N, d]``) and ``inward`` (``[N, H]``:
+        the sum of every message a node receives, ``level_messages(...)[1]``)."""
+        leaf = sched.leaf_rows
+        xp = self.proj(x.index_select(0, leaf))
+        h = torch.relu(self.W_e(xp) + self.U_e(inward.index_select(0, leaf)))
+        h_g = h.new_zeros(sched.num_graphs, h.shape[1]).index_add(0, sched.leaf_graph, h)
+        # The heads run in float64: a float32 matmul rounds differently with the number of rows
+        # (BLAS kernels), and the KL term exponentiates logvar, which turns those last-bit
+        # differences into a visibly batch-dependent loss. Rounded back to float32, a robot's
+        # (mu, logvar) no longer depend on the other robots of its batch. [B, H] x [H, z]: free.
+        hd = h_g.double()
+        return tuple(F.linear(hd, head.weight.double(), head.bias.double()).to(h_g.dtype)
+                     for head in (self.mu, self.logvar))
