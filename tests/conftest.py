@@ -5,7 +5,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
+import torch
+
+from robovae.data.features import get_feature_set
+from robovae.data.graph import RobotData, tree_data
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_MENAGERIE = Path(os.environ.get("ROBOVAE_SHARED_MENAGERIE",
@@ -27,3 +32,21 @@ def menagerie_dir() -> Path:
 def cache_root(tmp_path_factory) -> Path:
     """One dataset cache folder for the whole session."""
     return tmp_path_factory.mktemp("data_cache")
+
+
+def random_tree(rng: np.random.Generator, fs_name: str, n: int) -> RobotData:
+    """A random pre-order tree with random node types and garbage features (randn·10, NaN, Inf)."""
+    fs = get_feature_set(fs_name)
+    parent, path = [-1], [0]
+    for i in range(1, n):
+        path = path[: int(rng.integers(0, len(path))) + 1]
+        parent.append(path[-1])
+        path.append(i)
+    p = [0.5, 0.4, 0.1] if fs.num_node_types == 3 else [0.5, 0.5]
+    types = rng.choice(fs.num_node_types, n, p=p) if rng.random() < 0.7 \
+        else rng.integers(0, fs.num_node_types, n)
+    gen = torch.Generator().manual_seed(int(rng.integers(2**31)))
+    x = torch.randn(n, fs.dim, generator=gen) * 10
+    x[torch.rand(n, fs.dim, generator=gen) < 0.05] = float("nan")
+    x[torch.rand(n, fs.dim, generator=gen) < 0.02] = float("inf")
+    return tree_data(parent, types.tolist(), x, fs)
