@@ -5,12 +5,15 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import lightning as L
 import numpy as np
 import pytest
 import torch
 
+from robovae.data.datamodule import RobotDataModule
 from robovae.data.features import get_feature_set
 from robovae.data.graph import RobotData, tree_data
+from robovae.model.vae import RoboVAE
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_MENAGERIE = Path(os.environ.get("ROBOVAE_SHARED_MENAGERIE",
@@ -50,3 +53,21 @@ def random_tree(rng: np.random.Generator, fs_name: str, n: int) -> RobotData:
     x[torch.rand(n, fs.dim, generator=gen) < 0.05] = float("nan")
     x[torch.rand(n, fs.dim, generator=gen) < 0.02] = float("inf")
     return tree_data(parent, types.tolist(), x, fs)
+
+
+@pytest.fixture(scope="session")
+def trained(tmp_path_factory):
+    """A small model trained a few epochs on the zoo, with its datamodule and checkpoint."""
+    tmp = tmp_path_factory.mktemp("zoo")
+    L.seed_everything(0)
+    dm = RobotDataModule(["zoo"], root=str(tmp / "cache"),
+                         test_names=["gym_half_cheetah", "gym_hopper"], batch_size=8)
+    model = RoboVAE(hidden_dim=32, latent_dim=8, max_nodes=64)
+    trainer = L.Trainer(max_epochs=2, accelerator="cpu", devices=1, logger=False,
+                        enable_checkpointing=False, enable_progress_bar=False,
+                        enable_model_summary=False, default_root_dir=tmp,
+                        limit_train_batches=2)
+    trainer.fit(model, dm)
+    ckpt = tmp / "model.ckpt"
+    trainer.save_checkpoint(ckpt)
+    return model.eval(), dm, ckpt

@@ -6,10 +6,12 @@ from collections.abc import Sequence
 
 import lightning as L
 import torch
+from torch.utils.data import DataLoader as TorchDataLoader
 from torch_geometric.loader import DataLoader
 
 from robovae.data.dataset import RobotDataset
 from robovae.data.features import Normalizer
+from robovae.data.latents import LatentIndices
 
 
 class RobotDataModule(L.LightningDataModule):
@@ -28,6 +30,9 @@ class RobotDataModule(L.LightningDataModule):
         batch_size: graphs per batch.
         seed: seed of the fraction split.
         num_workers: DataLoader workers.
+        predict_samples: when > 0, ``predict`` decodes this many prior samples (robot indices
+            ``0 … n-1``, see :mod:`robovae.generate.predict`) instead of the test robots.
+        predict_seed, predict_temperature: seed and prior temperature of those samples.
     """
 
     def __init__(
@@ -44,20 +49,22 @@ class RobotDataModule(L.LightningDataModule):
         batch_size: int = 32,
         seed: int = 0,
         num_workers: int = 0,
+        predict_samples: int = 0,
+        predict_seed: int = 0,
+        predict_temperature: float = 1.0,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
         self.dataset: RobotDataset | None = None
         self.normalizer: Normalizer | None = None
+        self.predict_skip: list[int] = []  # robots already written (set by RobotWriter)
+        self.predict_set: LatentIndices | None = None
 
     @property
     def feature_set(self) -> str:
         """The feature set in use (after synthetic sources forced theirs)."""
         return self.dataset.feature_set if self.dataset is not None else \
             self.hparams.feature_set
-
-    def prepare_data(self) -> None:
-        RobotDataset(self.hparams.root, self.hparams.sources, self.hparams.feature_set)
 
     def _split(self, names: list[str]) -> tuple[list[int], list[int], list[int]]:
         hp = self.hparams
@@ -82,10 +89,15 @@ class RobotDataModule(L.LightningDataModule):
             val = list(train)
         return train, val, test
 
+    def prepare_data(self) -> None:
+        RobotDataset(self.hparams.root, self.hparams.sources, self.hparams.feature_set)
+
     def setup(self, stage: str | None = None) -> None:
+        hp = self.hparams
+        if stage == "predict" and hp.predict_samples > 0:
+            return  # latents only: the model brings its normaliser from the checkpoint
         if self.dataset is not None:
             return
-        hp = self.hparams
         self.dataset = RobotDataset(hp.root, hp.sources, hp.feature_set, progress=False)
         train, val, test = self._split(self.dataset.names)
         if not train:
@@ -109,3 +121,11 @@ class RobotDataModule(L.LightningDataModule):
         return DataLoader(self.test_set, batch_size=self.hparams.batch_size,
                           num_workers=self.hparams.num_workers)
 
+
+    def predict_dataloader(self) -> DataLoader | TorchDataLoader:
+        hp = self.hparams
+        if hp.predict_samples <= 0:
+            return self.test_dataloader()
+        self.predict_set = LatentIndices(hp.predict_samples, hp.predict_seed,
+                                         hp.predict_temperature, skip=self.predict_skip)
+        return TorchDataLoader(self.predict_set, batch_size=max(hp.batch_size, 1))

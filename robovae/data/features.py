@@ -270,11 +270,14 @@ class Normalizer(nn.Module):
     .. math::  \\hat x_{ic} = m_{ic} (T_c(x_{ic}) - \\mu_c) / \\sigma_c
 
     where ``m`` is the node's column mask (paper §4.1: rows carry zeros in the other types'
-    columns).
+    columns). ``low``/``high`` hold each column's training range in model units, so decoded
+    samples can be kept on the support of the data (:meth:`inverse` with ``clamp``).
     """
 
     mean: Tensor
     std: Tensor
+    low: Tensor
+    high: Tensor
     fitted: Tensor
 
     def __init__(self, feature_set: str | FeatureSet) -> None:
@@ -284,6 +287,8 @@ class Normalizer(nn.Module):
         d = fs.dim
         self.register_buffer("mean", torch.zeros(d))
         self.register_buffer("std", torch.ones(d))
+        self.register_buffer("low", torch.full((d,), -torch.inf))
+        self.register_buffer("high", torch.full((d,), torch.inf))
         self.register_buffer("fitted", torch.zeros((), dtype=torch.bool))
         self.register_buffer("type_mask", fs.type_mask(), persistent=False)
         self.register_buffer("is_log", fs.column_transform("log"), persistent=False)
@@ -309,6 +314,13 @@ class Normalizer(nn.Module):
         std = torch.where(std < 1e-6, torch.ones_like(std), std)
         self.mean.copy_(torch.where(self.is_cat, torch.zeros_like(mean), mean))
         self.std.copy_(torch.where(self.is_cat, torch.ones_like(std), std))
+        y = (t - self.mean) / self.std
+        own = mask.bool()
+        low = torch.where(own, y, torch.full_like(y, torch.inf)).amin(0)
+        high = torch.where(own, y, torch.full_like(y, -torch.inf)).amax(0)
+        unseen = ~own.any(0)
+        self.low.copy_(torch.where(unseen, torch.full_like(low, -torch.inf), low))
+        self.high.copy_(torch.where(unseen, torch.full_like(high, torch.inf), high))
         self.fitted.fill_(True)
         return self
 
@@ -317,9 +329,18 @@ class Normalizer(nn.Module):
         mask = self.type_mask[node_type]
         return torch.where(mask, (self._t(x) - self.mean) / self.std, torch.zeros_like(x))
 
-    def inverse(self, y: Tensor, node_type: Tensor) -> Tensor:
-        """Normalised model units → physical values (zero outside the node's own columns)."""
+    def inverse(self, y: Tensor, node_type: Tensor, clamp: float | None = None) -> Tensor:
+        """Normalised model units → physical values (zero outside the node's own columns).
+
+        With ``clamp = c``, each column is first clipped to its training range widened by
+        ``c`` times its width on both sides: ``[lo - c (hi - lo), hi + c (hi - lo)]``.
+        """
         mask = self.type_mask[node_type]
+        if clamp is not None:
+            width = (self.high - self.low).nan_to_num(nan=0.0, posinf=0.0)
+            lo = (self.low - clamp * width).nan_to_num(neginf=-1e6)
+            hi = (self.high + clamp * width).nan_to_num(posinf=1e6)
+            y = torch.maximum(torch.minimum(y, hi), lo)
         return torch.where(mask, self._t_inv(y * self.std + self.mean), torch.zeros_like(y))
 
     def extra_repr(self) -> str:

@@ -64,8 +64,11 @@ Rules (in order):
     to ``b``, then both equally — until ``a + b = c · (1 + 1e-4)`` (the margin survives float32
     and the XML's 6 significant digits). ``c`` is never lowered.
 ``size_positive``
-    ``link.size``: negative → 0; a zero component means "absent", positive components below
-    :data:`MIN_SIZE` are raised to it, and a zero before a positive component is raised too (the
+    ``link.size``: negative → 0; a zero component means "absent"; trailing components (2nd or
+    3rd) below :data:`SIZE_ZERO` m or below :data:`SIZE_ZERO_RATIO` times the largest are
+    absent too (a decoder's "zero" is ``exp(log eps) ≈ 1e-4``, not 0: read literally it turns a
+    capsule into a sub-millimetre plate); positive components below :data:`MIN_SIZE` are
+    raised to it, and a zero before a positive component is raised too (the
     writer reads the size as sphere ``(r)``, capsule ``(r, h)`` or box ``(x, y, z)``).
     ``geom.size``: the components the primitive uses (sphere 1, capsule/cylinder 2,
     ellipsoid/box 3) ≥ :data:`MIN_SIZE`, the unused ones ≥ 0.
@@ -148,6 +151,10 @@ MIN_INERTIA = 1e-14
 INERTIA_RATIO = 1e-9
 #: Smallest positive geom size component (m); the smallest real one is 1.7e-4 m.
 MIN_SIZE = 1e-5
+#: A trailing ``link.size`` component below this (m) is absent; real models use >= 1e-3.
+SIZE_ZERO = 5e-4
+#: ... or below this fraction of the largest component (real boxes: >= 0.05).
+SIZE_ZERO_RATIO = 0.02
 #: Radius of the sphere the writer gives a link without size (m); also the radius used to
 #: derive a missing inertia.
 DEFAULT_GEOM_RADIUS = 0.02
@@ -525,6 +532,11 @@ def _inertia_triangle(v: _View) -> None:
 
 def _size_prefix(size: np.ndarray) -> np.ndarray:
     s = np.maximum(size, 0.0)
+    tiny = max(SIZE_ZERO, SIZE_ZERO_RATIO * float(s.max(initial=0.0)))
+    for k in range(len(s) - 1, 0, -1):  # trailing components only; the first one stays
+        if s[k] >= tiny:
+            break
+        s[k] = 0.0
     pos = np.nonzero(s > 0)[0]
     if pos.size:
         last = int(pos[-1])

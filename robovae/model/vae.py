@@ -22,7 +22,7 @@ from robovae.data.graph import RobotData, tree_data
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
-from robovae.model.tree import tree_schedule
+from robovae.model.tree import level_messages, tree_schedule
 
 
 class RoboVAE(L.LightningModule):
@@ -39,6 +39,9 @@ class RoboVAE(L.LightningModule):
         lr_min_factor: final learning rate as a fraction of ``lr`` for the cosine schedule.
         max_nodes, max_depth: limits of autoregressive decoding.
         topo_context: feed depth and child count to the expansion head (beyond eq. 9).
+        support_margin: decoded features are clipped to the training range of each column
+            widened by this fraction of its width (``None``: no clipping). Keeps prior samples
+            on the support of the data: a log-scaled mass far outside it would be e^20 kg.
     """
 
     def __init__(
@@ -56,6 +59,7 @@ class RoboVAE(L.LightningModule):
         max_nodes: int = 256,
         max_depth: int = 64,
         topo_context: bool = True,
+        support_margin: float | None = 0.1,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -65,6 +69,7 @@ class RoboVAE(L.LightningModule):
         self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
                                    topo_context=topo_context, type_mask=fs.type_mask())
+        self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------
 
@@ -77,6 +82,18 @@ class RoboVAE(L.LightningModule):
                              f"but the data has {norm.feature_set.name!r}")
         if norm is not None and not bool(self.normalizer.fitted):
             self.normalizer.load_state_dict(norm.state_dict())
+        if stage == "fit" and dm is not None and getattr(dm, "train_set", None) is not None:
+            from robovae.evaluate.samples import robot_record
+
+            self.training_robots = [robot_record(d, self.normalizer) for d in dm.train_set]
+
+    def on_save_checkpoint(self, checkpoint: dict) -> None:
+        """Keep the training robots' records (names, duplicate keys, descriptors: plain
+        strings and numbers) so generation can measure novelty from the checkpoint alone."""
+        checkpoint["robovae_training_robots"] = self.training_robots
+
+    def on_load_checkpoint(self, checkpoint: dict) -> None:
+        self.training_robots = checkpoint.get("robovae_training_robots", [])
 
     def normalized(self, batch: Batch) -> Batch:
         """A shallow copy of ``batch`` whose ``x`` is in model units."""
@@ -98,9 +115,16 @@ class RoboVAE(L.LightningModule):
         """Loss terms of a batch of physical-unit robot graphs (teacher forcing)."""
         nb = self.normalized(batch)
         sched = tree_schedule(nb)
-        mu, logvar = self.encoder(nb, sched)
+        # the decoder's teacher-forced messages do not depend on z: run the encoder's and the
+        # decoder's level passes together (one stacked pass, the same as two separate ones)
+        enc, dec = self.encoder, self.decoder
+        x = nb.x.index_select(0, sched.order)  # level order
+        px = torch.stack([enc.cell.project(x, enc.proj.weight),
+                          dec.cell.project(x, dec.proj.weight)])
+        down, total, sdown = level_messages([enc.cell, dec.cell], px, sched, num_encoder=1)
+        mu, logvar = enc.readout(x, total[0], sched)
         z = reparametrize(mu, logvar) if sample else mu
-        out = self.decoder.teacher_forcing(z, nb, sched)
+        out = dec.teacher_forcing(z, nb, sched, messages=(down[1], total[1], sdown[1]))
         return vae_loss(out, nb, mu, logvar, self.beta_at(self.current_epoch))
 
     def _step(self, batch: Batch, stage: str) -> Tensor:
@@ -123,8 +147,18 @@ class RoboVAE(L.LightningModule):
     def test_step(self, batch: Batch, batch_idx: int) -> Tensor:
         return self._step(batch, "test")
 
-    def predict_step(self, batch: Batch, batch_idx: int) -> list[RobotData]:
-        return self.reconstruct(batch)
+    def predict_step(self, batch: Batch | dict, batch_idx: int) -> list[RobotData] | dict:
+        """Reconstruct a batch of robots, or decode a batch of latent indices
+        (:class:`~robovae.generate.predict.LatentIndices`: ``z_i`` from ``(seed, i)``)."""
+        if not isinstance(batch, dict):
+            return self.reconstruct(batch)
+        from robovae.generate.pipeline import latent
+
+        seed, temp = int(batch["seed"][0]), float(batch["temperature"][0])
+        z = torch.stack([latent(seed, int(i), self.hparams.latent_dim, temp)
+                         for i in batch["index"]]).to(self.dtype)
+        return {"index": batch["index"], "z": z, "graphs": self.decode(z), "seed": seed,
+                "temperature": temp}
 
     def configure_optimizers(self):
         hp = self.hparams
@@ -157,11 +191,12 @@ class RoboVAE(L.LightningModule):
         """Greedy autoregressive decoding of latents ``z`` [B, latent] into robot graphs with
         physical feature values."""
         hp = self.hparams
-        trees = self.decoder.decode(z.to(self.device), max_nodes=max_nodes or hp.max_nodes,
+        trees = self.decoder.decode(z.to(self.device, self.dtype),
+                                    max_nodes=max_nodes or hp.max_nodes,
                                     max_depth=max_depth or hp.max_depth)
         out = []
         for i, (parent, node_type, x) in enumerate(trees):
-            phys = self.normalizer.inverse(x, node_type)
+            phys = self.normalizer.inverse(x, node_type, clamp=hp.support_margin)
             out.append(tree_data(parent.cpu(), node_type.cpu(), phys.cpu(), self.feature_set,
                                  name=f"decoded_{i}", source="robovae.decode"))
         return out

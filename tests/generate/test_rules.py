@@ -344,6 +344,21 @@ def test_size_positive():
     assert GEOM_SIZE_COMPONENTS["box"] == 3
 
 
+@pytest.mark.parametrize("size, expect", [
+    ([0.0126, 0.038, 0.0003], [0.0126, 0.038, 0.0]),  # decoded "zero" → capsule, not a plate
+    ([0.05, 0.0004, 0.0002], [0.05, 0.0, 0.0]),  # → sphere
+    ([0.2, 0.1, 0.003], [0.2, 0.1, 0.0]),  # 1.5 % of the largest: absent
+    ([0.0003, 0.0, 0.0], [0.0003, 0.0, 0.0]),  # the first component is never dropped
+    ([0.02, 0.03, 0.001], [0.02, 0.03, 0.001]),  # a real thin box stays
+])
+def test_size_positive_drops_decoded_zeros(size, expect):
+    d = quadruped("paper34")
+    link = nodes(d, LINK)[1]
+    put(d, "paper34", "link.size", link, size)
+    out, _ = RULES["size_positive"](d, "paper34")
+    assert feat(out, "paper34", "link.size", link) == pytest.approx(expect)
+
+
 @pytest.mark.parametrize("fs", SETS)
 def test_limb_length(fs):
     d = quadruped(fs)

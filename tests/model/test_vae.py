@@ -36,21 +36,6 @@ def test_overfit_go2(tmp_path, menagerie_dir, cache_root):
     assert res.fre < 1e-4
 
 
-@pytest.fixture(scope="module")
-def trained(tmp_path_factory):
-    """A small model trained a few epochs on the zoo, with its datamodule and checkpoint."""
-    tmp = tmp_path_factory.mktemp("zoo")
-    L.seed_everything(0)
-    dm = RobotDataModule(["zoo"], root=str(tmp / "cache"),
-                         test_names=["gym_half_cheetah", "gym_hopper"], batch_size=8)
-    model = RoboVAE(hidden_dim=32, latent_dim=8, max_nodes=64)
-    trainer = _trainer(tmp, 2, limit_train_batches=2)
-    trainer.fit(model, dm)
-    ckpt = tmp / "model.ckpt"
-    trainer.save_checkpoint(ckpt)
-    return model.eval(), dm, ckpt
-
-
 def test_checkpoint_alone_decodes_the_same_robot(trained):
     model, dm, ckpt = trained
     loaded = RoboVAE.load_from_checkpoint(ckpt).eval()

@@ -1,0 +1,186 @@
+"""Generation at scale: sample latents → decode → write MJCF → validate → manifest.
+
+``generate(ckpt, n, out)`` writes ``out/robot_<i>/robot.xml`` (+ ``scene.xml``) for robots
+``i = 0 … n-1`` and appends one JSON line per robot to ``out/manifest.jsonl``. Robot ``i``'s
+latent is drawn from its own generator seeded by ``(seed, i)``, so a robot does not depend on
+batch size, on which robots were already done, or on the process that made it: re-running
+skips the robots already in the manifest (resume after a crash), and the same checkpoint +
+seed give byte-identical files. Manifest lines are flushed and fsync'ed per batch; robot
+folders are complete before their manifest line is written.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import time
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+import torch
+
+from robovae.data.graph import RobotData
+from robovae.evaluate.samples import robot_record, sample_metrics
+from robovae.generate.validate import validate_many
+from robovae.generate.writer import write_robot
+from robovae.model.checkpoint import load_model
+from robovae.model.vae import RoboVAE
+
+MANIFEST = "manifest.jsonl"
+SUMMARY = "summary.json"
+
+
+def latent(seed: int, index: int, dim: int, temperature: float = 1.0) -> torch.Tensor:
+    """The latent of robot ``index`` of a run with ``seed``: ``N(0, T² I)`` from its own
+    generator (NumPy PCG64 seeded by the pair ``(seed, index)``: no two robots share one)."""
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, index])))
+    return torch.from_numpy(rng.standard_normal(dim).astype(np.float32)) * temperature
+
+
+def read_manifest(out: Path) -> dict[int, dict]:
+    """Manifest records by robot index (a torn last line from a crash is ignored)."""
+    records: dict[int, dict] = {}
+    for path in sorted(out.glob("manifest*.jsonl")):  # manifest.jsonl + per-rank manifests
+        for line in path.read_text().splitlines():
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            records[int(rec["index"])] = rec
+    return records
+
+
+def _open_manifest(path: Path) -> TextIO:
+    """Open a manifest for appending; a torn last line (crash mid-write) is terminated first
+    so that the next record starts on its own line."""
+    f = path.open("a+")
+    if f.tell() > 0:
+        f.seek(f.tell() - 1)
+        if f.read(1) != "\n":
+            f.write("\n")
+    return f
+
+
+def _chunks(items: list[int], size: int) -> Iterator[list[int]]:
+    for k in range(0, len(items), size):
+        yield items[k:k + size]
+
+
+@dataclass
+class GenerationReport:
+    """What a :func:`generate` run produced (all robots in the manifest, old and new)."""
+
+    out: Path
+    total: int
+    new: int
+    seconds: float
+    reasons: dict[str, int] = field(default_factory=dict)
+    rules: dict[str, int] = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"out": str(self.out), "total": self.total, "new": self.new,
+                "seconds": self.seconds, "reasons": self.reasons, "rules": self.rules,
+                "metrics": self.metrics}
+
+    def format(self) -> str:
+        m = self.metrics
+        lines = [f"{self.total} robots in {self.out} ({self.new} new, {self.seconds:.1f} s)"]
+        if m:
+            lines.append(f"validity {m['validity']:.1%}  uniqueness {m['uniqueness']:.1%}  "
+                         f"novelty {m['novelty']:.1%}  distinct topologies "
+                         f"{m['distinct_topologies']} (training: {m['training_topologies']})")
+        lines.append("reasons: " + ", ".join(f"{k} {v}" for k, v in sorted(self.reasons.items())))
+        if self.rules:
+            lines.append("rules fired: " + ", ".join(f"{k} {v}" for k, v in
+                                                     sorted(self.rules.items())))
+        return "\n".join(lines)
+
+
+def generate(
+    model: RoboVAE | str | Path,
+    n: int,
+    out: str | Path,
+    seed: int = 0,
+    temperature: float = 1.0,
+    validate: bool = True,
+    batch_size: int = 256,
+    jobs: int = 0,
+    progress: bool = True,
+    scene: bool = True,
+) -> GenerationReport:
+    """Generate ``n`` robots into ``out`` (resumable; see the module docstring)."""
+    start = time.perf_counter()
+    model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
+    # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
+    # a robot must not depend on which robots it was decoded with (byte-identical files)
+    model = model.to(torch.float64)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    done = read_manifest(out)
+    todo = [i for i in range(n) if i not in done]
+    dim = model.hparams.latent_dim
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
+               disable=not progress)
+    with _open_manifest(out / MANIFEST) as manifest:
+        for chunk in _chunks(todo, batch_size):
+            z = torch.stack([latent(seed, i, dim, temperature) for i in chunk])
+            records = write_records(model, chunk, z, model.decode(z), out, seed=seed,
+                                    temperature=temperature, validate=validate, jobs=jobs,
+                                    scene=scene)
+            append_records(manifest, records)
+            bar.update(len(chunk))
+    bar.close()
+    return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
+
+
+def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
+                  graphs: Sequence[RobotData], out: Path, seed: int = 0,
+                  temperature: float = 1.0, validate: bool = True, jobs: int = 0,
+                  scene: bool = True) -> list[dict]:
+    """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
+    validate them. Returns one manifest record per robot (the caller appends them)."""
+    records = []
+    for i, g, zi in zip(indices, graphs, z):
+        name = f"robovae_s{seed}_{i:06d}"
+        res = write_robot(g, out / f"robot_{i:06d}", model.feature_set, name=name, scene=scene)
+        rec = robot_record(g, model.normalizer)
+        rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
+                   latent=[round(float(v), 6) for v in zi], rules=res.rules,
+                   counts=res.counts, path=str(res.robot_path.relative_to(out)))
+        records.append(rec)
+    if validate:
+        checks = validate_many([out / r["path"] for r in records], jobs=jobs)
+        for rec, v in zip(records, checks):
+            rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
+    return records
+
+
+def append_records(manifest: TextIO, records: Sequence[dict]) -> None:
+    """Append manifest lines and make them durable (flush + fsync) before returning."""
+    for rec in records:
+        manifest.write(json.dumps(rec) + "\n")
+    manifest.flush()
+    os.fsync(manifest.fileno())
+
+
+def summarize(model: RoboVAE, out: Path, n: int, new: int, validate: bool,
+              seconds: float) -> GenerationReport:
+    """The report over robots ``0 … n-1`` of the manifests in ``out``; saved as JSON."""
+    everything = [r for i, r in sorted(read_manifest(out).items()) if i < n]
+    reasons = Counter(r.get("reason", "unvalidated") for r in everything)
+    rules = Counter(rule for r in everything for rule in r.get("rules", []))
+    metrics = sample_metrics(everything, model.training_robots) if validate else {}
+    report = GenerationReport(out, len(everything), new, seconds,
+                              dict(reasons), dict(rules), metrics)
+    tmp = out / (SUMMARY + ".tmp")
+    tmp.write_text(json.dumps(report.to_dict(), indent=1))
+    os.replace(tmp, out / SUMMARY)
+    return report
