@@ -1,6 +1,8 @@
 """The ``robovae`` command.
 
 ``robovae data``       build a dataset and print one row per robot;
+``robovae generate``   sample robots from a checkpoint, write MJCF, validate, report;
+``robovae render``     PNG contact sheets and original-vs-reconstruction pictures;
 ``robovae fit|validate|test|predict``  the Lightning CLI (model + data from a YAML config).
 """
 
@@ -9,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from robovae.errors import RobovaeError
 
@@ -53,9 +56,25 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
     report = generate(args.ckpt, args.n, args.out, seed=args.seed,
                       temperature=args.temperature, validate=args.validate,
-                      batch_size=args.batch_size, jobs=args.jobs, scene=args.scene)
+                      batch_size=args.batch_size, jobs=args.jobs, scene=args.scene,
+                      overwrite=args.overwrite)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """Contact sheet of robots, or a robot next to its reconstruction (``--ckpt``)."""
+    from robovae.evaluate.figures import reconstruction_figure, sample_sheet
+
+    if args.ckpt:
+        for robot in args.paths:
+            res = reconstruction_figure(args.ckpt, robot, args.out if len(args.paths) == 1
+                                        else Path(args.out).with_name(f"{Path(robot).stem}.png"))
+            print(f"{robot}: RA {res['ra']:.3f}, RA_true {res['ra_true']:.3f}, FRE "
+                  f"{res['fre']:.2e} -> {res['image']}, {res['graphs']}")
+    else:
+        print(sample_sheet(args.paths, args.out, first=args.first, columns=args.columns))
     return 0
 
 
@@ -84,7 +103,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write scene.xml (floor + light + robot)")
     g.add_argument("--batch-size", type=int, default=256, help="latents decoded at once")
     g.add_argument("--jobs", type=int, default=0, help="validation processes (0: all cores)")
+    g.add_argument("--overwrite", action="store_true",
+                   help="--out holds robots of another checkpoint/seed: delete them first")
     g.set_defaults(func=cmd_generate)
+    r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "
+                       "reconstruction with --ckpt (MUJOCO_GL=egl renders off-screen)")
+    r.add_argument("paths", nargs="+", help="robot files or folders (robot_*/robot.xml)")
+    r.add_argument("--out", required=True, help="output PNG")
+    r.add_argument("--ckpt", help="reconstruct each robot with this model (side by side)")
+    r.add_argument("--first", type=int, default=20, help="robots on the contact sheet")
+    r.add_argument("--columns", type=int, default=5)
+    r.set_defaults(func=cmd_render)
     for name in LIGHTNING_COMMANDS:
         sub.add_parser(name, help=f"Lightning CLI: {name} (see robovae {name} --help)",
                        add_help=False)

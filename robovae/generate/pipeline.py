@@ -12,8 +12,11 @@ folders are complete before their manifest line is written.
 from __future__ import annotations
 
 import copy
+import hashlib
 import json
 import os
+import re
+import shutil
 import time
 from collections import Counter
 from collections.abc import Iterator, Sequence
@@ -25,6 +28,7 @@ import numpy as np
 import torch
 
 from robovae.data.graph import RobotData
+from robovae.errors import RobovaeError
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.validate import validate_many
 from robovae.generate.writer import write_robot
@@ -33,6 +37,50 @@ from robovae.model.vae import RoboVAE
 
 MANIFEST = "manifest.jsonl"
 SUMMARY = "summary.json"
+RUN = "run.json"
+
+
+def model_fingerprint(model: RoboVAE) -> str:
+    """SHA-256 of the model's weights and buffers (names, dtypes, values)."""
+    h = hashlib.sha256()
+    for name, t in sorted(model.state_dict().items()):
+        h.update(name.encode())
+        h.update(str(t.dtype).encode())
+        h.update(t.detach().cpu().contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+def claim(out: Path, run: dict, overwrite: bool = False) -> None:
+    """Make ``out`` a generation folder of ``run`` (model fingerprint, seed, temperature).
+
+    A folder that holds robots of another run is refused with one line (resuming it would mix
+    two models' robots), unless ``overwrite``: then robovae's own files (``robot_<i>/``,
+    manifests, summary) are deleted first — nothing else in the folder is touched.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / RUN
+    old = json.loads(path.read_text()) if path.is_file() else None
+    has_robots = bool(read_manifest(out))
+    if old == run or (old is None and not has_robots):
+        if old is None:
+            _atomic_json(path, run)
+        return
+    if not overwrite:
+        what = ", ".join(k for k in run if old is None or old.get(k) != run[k])
+        raise RobovaeError(f"robovae: {out}: holds robots of another run ({what or 'unknown'} "
+                           "differ); use another --out or --overwrite")
+    for item in out.iterdir():
+        if item.is_dir() and re.fullmatch(r"robot_\d{6}", item.name):
+            shutil.rmtree(item)
+        elif re.fullmatch(r"manifest.*\.jsonl|summary\.json|run\.json", item.name):
+            item.unlink()
+    _atomic_json(path, run)
+
+
+def _atomic_json(path: Path, obj: dict) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=1))
+    os.replace(tmp, path)
 
 
 def latent(seed: int, index: int, dim: int, temperature: float = 1.0) -> torch.Tensor:
@@ -113,15 +161,21 @@ def generate(
     jobs: int = 0,
     progress: bool = True,
     scene: bool = True,
+    overwrite: bool = False,
 ) -> GenerationReport:
-    """Generate ``n`` robots into ``out`` (resumable; see the module docstring)."""
+    """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
+
+    ``out`` is tied to the model and settings that started it (``run.json``): resuming with
+    another checkpoint, seed or temperature is refused unless ``overwrite``.
+    """
     start = time.perf_counter()
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
+    out = Path(out)
+    claim(out, {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
+                "feature_set": model.feature_set.name}, overwrite)
     # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
     # a robot must not depend on which robots it was decoded with (byte-identical files)
     model = model.to(torch.float64)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     done = read_manifest(out)
     todo = [i for i in range(n) if i not in done]
     dim = model.hparams.latent_dim
@@ -180,7 +234,5 @@ def summarize(model: RoboVAE, out: Path, n: int, new: int, validate: bool,
     metrics = sample_metrics(everything, model.training_robots) if validate else {}
     report = GenerationReport(out, len(everything), new, seconds,
                               dict(reasons), dict(rules), metrics)
-    tmp = out / (SUMMARY + ".tmp")
-    tmp.write_text(json.dumps(report.to_dict(), indent=1))
-    os.replace(tmp, out / SUMMARY)
+    _atomic_json(out / SUMMARY, report.to_dict())
     return report

@@ -293,7 +293,7 @@ def _joint_types(v: _View) -> list[str]:
         rng = v.get(0, "joint.range")
         axis = v.get(0, "joint.axis")
         norm = float(np.linalg.norm(axis))
-        unlimited = bool(np.all(rng == 0.0))
+        unlimited = bool(np.all(np.abs(rng) < RANGE_ZERO))  # decoded zeros are not exact
         if unlimited and norm > 0 and axis[2] / norm >= FREE_AXIS_COS:
             out[0] = "free"
     return out

@@ -3,6 +3,9 @@
 A robot is ``valid`` when all of these hold (SPEC §4, validity):
 
 1. ``compile``: the file compiles with MuJoCo (a floor plane is added when the file has none);
+   ``degenerate``: it has no joint besides a free base — a rigid body is not a robot (stricter
+   than SPEC §4, which only asks for compiling and simulating: a decoder collapsing to one-node
+   "robots" would otherwise score 100 %);
 2. ``self_penetration``: at rest (``mj_forward`` of the initial pose) no two robot geoms
    penetrate deeper than ``penetration_tol`` metres (contacts with the floor do not count);
 3. ``nan_inf``: qpos/qvel stay finite during ``duration`` seconds of simulation at the model's
@@ -39,7 +42,7 @@ _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_CONTACTFULL: "contact buffer full",
     mujoco.mjtWarning.mjWARN_CNSTRFULL: "constraint buffer full",
 }
-REASONS = ("valid", "compile", "self_penetration", "nan_inf", "mujoco_warning",
+REASONS = ("valid", "compile", "degenerate", "self_penetration", "nan_inf", "mujoco_warning",
            "energy_blowup")
 
 
@@ -96,6 +99,9 @@ def validate_robot(path: str | Path, duration: float = 1.0, penetration_tol: flo
             model = _compile(path)
         except Exception as e:
             return fail("compile", str(e).strip().splitlines()[0] if str(e).strip() else e)
+        if not (model.jnt_type != mujoco.mjtJoint.mjJNT_FREE).any():
+            return fail("degenerate", f"{model.nbody - 1} bodies and no joint besides a free "
+                        "base: nothing moves")
         model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)

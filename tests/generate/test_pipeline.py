@@ -7,11 +7,21 @@ from pathlib import Path
 
 import lightning as L
 import mujoco
+import pytest
 
 from robovae.cli import main
 from robovae.data.datamodule import RobotDataModule
-from robovae.generate.pipeline import MANIFEST, SUMMARY, generate, latent, read_manifest
+from robovae.errors import RobovaeError
+from robovae.generate.pipeline import (
+    MANIFEST,
+    RUN,
+    SUMMARY,
+    generate,
+    latent,
+    read_manifest,
+)
 from robovae.generate.predict import RobotWriter
+from robovae.generate.validate import REASONS
 
 
 def _files(out: Path) -> dict[str, bytes]:
@@ -28,8 +38,7 @@ def test_generate_writes_loadable_robots_and_a_report(trained, tmp_path):
     for i, rec in recs.items():
         folder = out / f"robot_{i:06d}"
         mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
-        assert rec["reason"] in ("valid", "compile", "self_penetration", "nan_inf",
-                                 "mujoco_warning", "energy_blowup")
+        assert rec["reason"] in REASONS
         assert len(rec["latent"]) == 8 and rec["seed"] == 3
         assert rec["counts"]["bodies"] >= 1
     summary = json.loads((out / SUMMARY).read_text())
@@ -102,3 +111,18 @@ def test_cli_generate_bad_checkpoint_is_one_line(tmp_path, capsys):
     assert main(["generate", "--ckpt", str(bad), "-n", "1", "--out", str(tmp_path / "g")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"robovae: {bad}") and "\n" not in err
+
+
+def test_a_folder_of_another_run_is_refused_unless_overwrite(trained, tmp_path):
+    _, _, ckpt = trained
+    out = tmp_path / "gen"
+    generate(ckpt, 3, out, seed=0, validate=False, progress=False)
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(RobovaeError, match="seed differ"):
+        generate(ckpt, 3, out, seed=1, validate=False, progress=False)
+    assert sorted(read_manifest(out)) == [0, 1, 2]  # nothing lost
+    report = generate(ckpt, 2, out, seed=1, validate=False, progress=False, overwrite=True)
+    assert report.new == 2 and sorted(p.name for p in out.glob("robot_*")) == [
+        "robot_000000", "robot_000001"]
+    assert (out / "notes.txt").read_text() == "mine"
+    assert json.loads((out / RUN).read_text())["seed"] == 1

@@ -21,7 +21,8 @@ def _write(tmp_path: Path, name: str, body: str, option: str = "") -> Path:
 
 
 BOX = ('<body pos="0 0 {z}"><freejoint/><geom type="box" size=".1 .1 .1" mass="1"/>'
-       '</body>')
+       '<body pos=".2 0 0"><joint type="hinge" axis="0 1 0"/>'
+       '<geom type="capsule" fromto="0 0 0 .2 0 0" size=".03"/></body></body>')
 
 
 def test_zoo_robots_are_valid():
@@ -40,7 +41,7 @@ def test_compile_error_is_a_reason_not_an_exception(tmp_path):
 
 def test_self_penetration_at_rest(tmp_path):
     two = ('<body pos="0 0 1"><freejoint/><geom type="sphere" size=".2"/></body>'
-           '<body pos="0 0 1.1"><freejoint/><geom type="sphere" size=".2"/></body>')
+           '<body pos="0 0 1.1"><joint type="slide"/><geom type="sphere" size=".2"/></body>')
     v = validate_robot(_write(tmp_path, "overlap", two))
     assert v.reason == "self_penetration"
     apart = two.replace("0 0 1.1", "0 0 1.5")
@@ -54,9 +55,10 @@ def test_energy_blowup(tmp_path):
     assert v.reason == "energy_blowup" and v.max_kinetic > 100 * v.energy_scale
 
 
-def test_a_dropped_box_is_valid(tmp_path):
-    v = validate_robot(_write(tmp_path, "box", BOX.format(z=1)))
-    assert v.valid, v.detail
+def test_a_rigid_body_is_degenerate(tmp_path):
+    rigid = '<body pos="0 0 1"><freejoint/><geom type="box" size=".1 .1 .1"/></body>'
+    v = validate_robot(_write(tmp_path, "rigid", rigid))
+    assert v.reason == "degenerate" and "nothing moves" in v.detail
 
 
 def test_validate_many_in_order_with_workers(tmp_path):
