@@ -57,7 +57,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
     report = generate(args.ckpt, args.n, args.out, seed=args.seed,
                       temperature=args.temperature, validate=args.validate,
                       batch_size=args.batch_size, jobs=args.jobs, scene=args.scene,
-                      overwrite=args.overwrite)
+                      overwrite=args.overwrite, floating=args.floating_base)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -103,6 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write scene.xml (floor + light + robot)")
     g.add_argument("--batch-size", type=int, default=256, help="latents decoded at once")
     g.add_argument("--jobs", type=int, default=0, help="validation processes (0: all cores)")
+    g.add_argument("--floating-base", action=argparse.BooleanOptionalAction, default=True,
+                   help="a robot whose root is a single joint gets a free joint (paper34 has "
+                   "no joint types: otherwise its root would be a hinge to the world)")
     g.add_argument("--overwrite", action="store_true",
                    help="--out holds robots of another checkpoint/seed: delete them first")
     g.set_defaults(func=cmd_generate)

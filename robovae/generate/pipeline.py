@@ -30,6 +30,7 @@ import torch
 from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
 from robovae.evaluate.samples import robot_record, sample_metrics
+from robovae.generate.rules import floating_base
 from robovae.generate.validate import validate_many
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
@@ -162,6 +163,7 @@ def generate(
     progress: bool = True,
     scene: bool = True,
     overwrite: bool = False,
+    floating: bool = True,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -172,7 +174,7 @@ def generate(
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
     out = Path(out)
     claim(out, {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
-                "feature_set": model.feature_set.name}, overwrite)
+                "feature_set": model.feature_set.name, "floating": floating}, overwrite)
     # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
     # a robot must not depend on which robots it was decoded with (byte-identical files)
     model = model.to(torch.float64)
@@ -188,7 +190,7 @@ def generate(
             z = torch.stack([latent(seed, i, dim, temperature) for i in chunk])
             records = write_records(model, chunk, z, model.decode(z), out, seed=seed,
                                     temperature=temperature, validate=validate, jobs=jobs,
-                                    scene=scene)
+                                    scene=scene, floating=floating)
             append_records(manifest, records)
             bar.update(len(chunk))
     bar.close()
@@ -198,16 +200,24 @@ def generate(
 def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   graphs: Sequence[RobotData], out: Path, seed: int = 0,
                   temperature: float = 1.0, validate: bool = True, jobs: int = 0,
-                  scene: bool = True) -> list[dict]:
+                  scene: bool = True, floating: bool = True) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
-    validate them. Returns one manifest record per robot (the caller appends them)."""
+    validate them. Returns one manifest record per robot (the caller appends them).
+
+    With ``floating``, a robot whose root is a single joint gets a floating base
+    (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base`` in the rules).
+    """
     records = []
     for i, g, zi in zip(indices, graphs, z):
         name = f"robovae_s{seed}_{i:06d}"
+        fixes: list[str] = []
+        if floating:
+            g, changed = floating_base(g, model.feature_set)
+            fixes += ["floating_base"] if changed else []
         res = write_robot(g, out / f"robot_{i:06d}", model.feature_set, name=name, scene=scene)
         rec = robot_record(g, model.normalizer)
         rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
-                   latent=[round(float(v), 6) for v in zi], rules=res.rules,
+                   latent=[round(float(v), 6) for v in zi], rules=fixes + res.rules,
                    counts=res.counts, path=str(res.robot_path.relative_to(out)))
         records.append(rec)
     if validate:

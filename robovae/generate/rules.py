@@ -736,3 +736,34 @@ def apply_rules(data: RobotData, feature_set: str | FeatureSet = "paper34"
 def check_rules(data: RobotData, feature_set: str | FeatureSet = "paper34") -> list[str]:
     """Names of the rules that would change ``data`` (nothing is modified)."""
     return apply_rules(data, feature_set)[1]
+
+
+def floating_base(data: RobotData, feature_set: str | FeatureSet = "paper34"
+                  ) -> tuple[RobotData, bool]:
+    """Give a generated robot a floating base: when the root node is a joint that is the only
+    joint above the root link, set its features to those MuJoCo gives a free joint (range
+    ``(0, 0)``, axis ``+z``, position 0, no damping/armature/friction/stiffness) — or, in sets
+    with ``joint.type``, its type to ``free``.
+
+    Not a physical rule (a hinge-anchored robot is a valid model): a generation choice.
+    ``paper34`` has no joint type, so :func:`joint_types` calls a root joint free only when
+    its features look exactly like a free joint's; a decoder's root features are rarely that
+    exact, and without this every sampled robot would hang from a hinge in mid-air. Every
+    training robot of the zoo whose root is a single joint is free-floating.
+
+    Returns ``(data, changed)``.
+    """
+    fs = _fs(feature_set)
+    v = _View(_check(data, fs), fs)
+    if not _free_root_allowed(v.parent, v.types):
+        return data, False
+    before = v.x.copy()
+    if v.has("joint.type"):
+        v.set(0, "joint.type", np.eye(len(JOINT_TYPES))[JOINT_TYPES.index("free")])
+    v.set(0, "joint.range", 0.0)
+    v.set(0, "joint.axis", [0.0, 0.0, 1.0])
+    for key in ("joint.pos", *_DYNAMICS, "joint.limited", "joint.actuated", "joint.gear",
+                "joint.ctrlrange"):
+        if key.startswith("joint.") and v.has(key):
+            v.set(0, key, 0.0)
+    return v.to_data(data), _changed(before, v.x)

@@ -28,6 +28,7 @@ from robovae.generate.rules import (
     RULES,
     apply_rules,
     check_rules,
+    floating_base,
     joint_types,
     link_structure,
 )
@@ -450,3 +451,29 @@ def test_constants_are_consistent():
     assert math.isclose(HINGE_LIMIT, 2 * math.pi)
     assert MIN_SIZE < 1.7e-4 and MIN_MASS < 5e-8 and MIN_INERTIA < 4.9e-14  # below real data
     assert DEFAULT_GEOM_RADIUS > MIN_SIZE
+
+
+@pytest.mark.parametrize("fs", SETS)
+def test_floating_base_frees_a_decoded_root_hinge(fs):
+    d = quadruped(fs)
+    assert joint_types(d, fs)[0] == "free"
+    same, changed = floating_base(d, fs)
+    assert not changed and torch.equal(same.x, d.x)  # a real free root is left alone
+    put(d, fs, "joint.range", 0, [-0.38, 0.49])  # what a decoder makes of a root joint
+    put(d, fs, "joint.axis", 0, [0.3, 0.33, 0.22])
+    if fs == "full":
+        put(d, fs, "joint.type", 0, np.eye(len(JOINT_TYPES))[JOINT_TYPES.index("hinge")])
+    assert joint_types(d, fs)[0] == "hinge"
+    out, changed = floating_base(d, fs)
+    assert changed and joint_types(out, fs)[0] == "free"
+    assert feat(out, fs, "joint.range", 0) == pytest.approx([0.0, 0.0])
+    assert torch.equal(out.x[1:], d.x[1:])  # nothing else changes
+    spec = graph_to_spec(out, fs)[0]
+    assert spec.compile().jnt_type[0] == 0  # mjJNT_FREE
+
+
+def test_floating_base_leaves_planar_roots_and_welded_bases():
+    zoo = dict(zoo_files()[0])
+    for name in ["gym_half_cheetah", "gym_hopper"]:  # rootx, rootz, rooty: three root joints
+        d = real_graph(str(zoo[name]), "paper34")
+        assert floating_base(d, "paper34") == (d, False)
