@@ -14,12 +14,15 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import multiprocessing
 import os
 import re
 import shutil
 import time
 from collections import Counter
 from collections.abc import Iterator, Sequence
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
@@ -31,7 +34,7 @@ from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.rules import floating_base
-from robovae.generate.validate import validate_many
+from robovae.generate.validate import validate_robot
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
@@ -185,45 +188,79 @@ def generate(
 
     bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
                disable=not progress)
-    with _open_manifest(out / MANIFEST) as manifest:
+    jobs = jobs or (os.cpu_count() or 1)
+    with _open_manifest(out / MANIFEST) as manifest, \
+            (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
         for chunk in _chunks(todo, batch_size):
             z = torch.stack([latent(seed, i, dim, temperature) for i in chunk])
             records = write_records(model, chunk, z, model.decode(z), out, seed=seed,
                                     temperature=temperature, validate=validate, jobs=jobs,
-                                    scene=scene, floating=floating)
+                                    scene=scene, floating=floating, pool=pool)
             append_records(manifest, records)
             bar.update(len(chunk))
     bar.close()
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 
 
+def worker_pool(jobs: int) -> ProcessPoolExecutor:
+    """Worker processes for writing and validating robots. Started with ``spawn``: a worker
+    forked from a process whose torch/OpenMP threads are running can deadlock in its first
+    torch call."""
+    return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+
+
+def _build_one(item: tuple) -> dict:
+    """Write one robot folder and validate it (runs in a worker process)."""
+    graph, folder, feature_set, name, scene, validate = item
+    try:
+        res = write_robot(graph, folder, feature_set, name=name, scene=scene)
+    except Exception as e:  # the rules make every graph writable; never lose a whole batch
+        return {"rules": [], "counts": {}, "valid": False, "reason": "compile",
+                "detail": f"writer error: {' '.join(str(e).split())}"}
+    rec = {"rules": res.rules, "counts": res.counts}
+    if validate:
+        v = validate_robot(res.robot_path)
+        rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
+    return rec
+
+
 def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   graphs: Sequence[RobotData], out: Path, seed: int = 0,
                   temperature: float = 1.0, validate: bool = True, jobs: int = 0,
-                  scene: bool = True, floating: bool = True) -> list[dict]:
+                  scene: bool = True, floating: bool = True,
+                  pool: Executor | None = None) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
     validate them. Returns one manifest record per robot (the caller appends them).
 
-    With ``floating``, a robot whose root is a single joint gets a floating base
-    (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base`` in the rules).
+    Writing and validation run in ``pool`` (or ``jobs`` worker processes, 0: all cores; 1: in
+    this process). With ``floating``, a robot whose root is a single joint gets a floating
+    base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``).
     """
-    records = []
+    records, items = [], []
+    fs = model.feature_set
     for i, g, zi in zip(indices, graphs, z):
         name = f"robovae_s{seed}_{i:06d}"
         fixes: list[str] = []
         if floating:
-            g, changed = floating_base(g, model.feature_set)
+            g, changed = floating_base(g, fs)
             fixes += ["floating_base"] if changed else []
-        res = write_robot(g, out / f"robot_{i:06d}", model.feature_set, name=name, scene=scene)
         rec = robot_record(g, model.normalizer)
         rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
-                   latent=[round(float(v), 6) for v in zi], rules=fixes + res.rules,
-                   counts=res.counts, path=str(res.robot_path.relative_to(out)))
+                   latent=[round(float(v), 6) for v in zi], rules=fixes,
+                   path=f"robot_{i:06d}/robot.xml")
         records.append(rec)
-    if validate:
-        checks = validate_many([out / r["path"] for r in records], jobs=jobs)
-        for rec, v in zip(records, checks):
-            rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
+        items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate))
+    jobs = jobs or (os.cpu_count() or 1)
+    if pool is not None:
+        built = list(pool.map(_build_one, items, chunksize=4))
+    elif jobs == 1 or len(items) < 4:
+        built = [_build_one(item) for item in items]
+    else:
+        with worker_pool(jobs) as tmp_pool:
+            built = list(tmp_pool.map(_build_one, items, chunksize=4))
+    for rec, b in zip(records, built):
+        rec["rules"] = rec["rules"] + b.pop("rules")
+        rec.update(b)
     return records
 
 

@@ -126,3 +126,16 @@ def test_a_folder_of_another_run_is_refused_unless_overwrite(trained, tmp_path):
         "robot_000000", "robot_000001"]
     assert (out / "notes.txt").read_text() == "mine"
     assert json.loads((out / RUN).read_text())["seed"] == 1
+
+
+@pytest.mark.timeout(180)
+def test_worker_processes_give_the_same_robots(trained, tmp_path):
+    """Writing and validating in spawned workers (a forked worker can deadlock in torch)."""
+    _, _, ckpt = trained
+    one = generate(ckpt, 6, tmp_path / "one", jobs=1, progress=False)
+    two = generate(ckpt, 6, tmp_path / "two", jobs=2, progress=False, batch_size=4)
+    assert _files(tmp_path / "one") == _files(tmp_path / "two")
+    assert one.reasons == two.reasons
+    strip = lambda r: {k: v for k, v in r.items() if k != "detail"}  # noqa: E731
+    assert [strip(r) for r in read_manifest(tmp_path / "one").values()] == \
+        [strip(r) for _, r in sorted(read_manifest(tmp_path / "two").items())]
