@@ -24,15 +24,13 @@ import numpy as np
 import pytest
 import torch
 
-from robovae.data.features import GEOM, GEOM_TYPES, JOINT, LINK, get_feature_set
+from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
 from robovae.data.graph import RobotData, tree_data
 from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.generate import writer as writer_module
 from robovae.generate.rules import (
-    DEFAULT_GEOM_RADIUS,
-    GEOM_SIZE_COMPONENTS,
     apply_rules,
     link_structure,
 )
@@ -45,11 +43,12 @@ from robovae.generate.writer import (
     write_robot,
 )
 from tests.conftest import random_tree
+from tests.reliability.strategies import assert_same_graph as assert_same
+from tests.reliability.strategies import roundtrip_expected as expected
 
 REPO = Path(__file__).resolve().parents[2]
 MENAGERIE = Path(os.environ.get("ROBOVAE_SHARED_MENAGERIE", REPO.parent / "shared" / "menagerie"))
 ZOO = dict(zoo_files()[0])
-RTOL, ATOL = 1e-5, 1e-9
 
 
 @cache
@@ -64,44 +63,6 @@ def _quadruped(fs: str) -> RobotData:
 
 def quadruped(fs: str) -> RobotData:
     return _quadruped(fs).clone()
-
-
-def expected(g: RobotData, fs_name: str) -> np.ndarray:
-    """The features a round trip must give back (module docstring for the exceptions)."""
-    fs = get_feature_set(fs_name)
-    x = g.x.double().numpy().copy()
-    types = g.node_type.tolist()
-    size = fs.slice("link.size")
-    if fs_name == "paper34":
-        for i in (i for i, t in enumerate(types) if t == LINK):
-            if not x[i, size].any():
-                x[i, size] = [DEFAULT_GEOM_RADIUS, 0.0, 0.0]
-        return x
-    gsize, gtype, coll = fs.slice("geom.size"), fs.slice("geom.type"), fs.slice("geom.collides")
-    used = {}
-    for i in (i for i, t in enumerate(types) if t == GEOM):
-        used[i] = GEOM_SIZE_COMPONENTS[GEOM_TYPES[int(np.argmax(x[i, gtype]))]]
-        x[i, gsize.start + used[i]:gsize.stop] = 0.0
-    parent = g.parent.tolist()
-    for i in (i for i, t in enumerate(types) if t == LINK):
-        geoms = [c for c in range(len(types)) if parent[c] == i and types[c] == GEOM]
-        first = next((c for c in geoms if x[c, coll.start] > 0.5), geoms[0] if geoms else -1)
-        if first >= 0:
-            x[i, size.start + used[first]:size.stop] = 0.0
-    return x
-
-
-def assert_same(g: RobotData, back: RobotData, want: np.ndarray, fs_name: str, what: str
-                ) -> None:
-    assert torch.equal(g.parent, back.parent), f"{what}: parents differ"
-    assert torch.equal(g.node_type, back.node_type), f"{what}: node types differ"
-    got = back.x.double().numpy()
-    bad = ~np.isclose(got, want, rtol=RTOL, atol=ATOL)
-    if bad.any():
-        cols = get_feature_set(fs_name).columns
-        r, c = np.argwhere(bad)[0]
-        raise AssertionError(f"{what}: {int(bad.sum())} values differ, first: node {r} "
-                             f"{cols[c]} {want[r, c]!r} -> {got[r, c]!r}")
 
 
 def roundtrip(path: str, fs: str, tmp: Path) -> tuple[RobotData, RobotData, WriteResult]:
