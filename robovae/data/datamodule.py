@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import lightning as L
 import torch
@@ -57,7 +57,9 @@ class RobotDataModule(L.LightningDataModule):
         self.save_hyperparameters()
         self.dataset: RobotDataset | None = None
         self.normalizer: Normalizer | None = None
-        self.predict_skip: list[int] = []  # robots already written (set by RobotWriter)
+        # robots already written: a list, or a function asked when the predict set is built
+        # (RobotWriter sets one that also ties the output folder to the run)
+        self.predict_skip: Sequence[int] | Callable[[], Sequence[int]] = []
         self.predict_set: LatentIndices | None = None
 
     @property
@@ -89,7 +91,16 @@ class RobotDataModule(L.LightningDataModule):
             val = list(train)
         return train, val, test
 
+    def _predicts_latents(self) -> bool:
+        """``predict`` of prior samples: no robot files are needed (the model brings its
+        normaliser from the checkpoint)."""
+        trainer = getattr(self, "trainer", None)
+        return (self.hparams.predict_samples > 0 and trainer is not None
+                and trainer.state.fn == "predict")
+
     def prepare_data(self) -> None:
+        if self._predicts_latents():
+            return
         RobotDataset(self.hparams.root, self.hparams.sources, self.hparams.feature_set)
 
     def setup(self, stage: str | None = None) -> None:
@@ -126,6 +137,7 @@ class RobotDataModule(L.LightningDataModule):
         hp = self.hparams
         if hp.predict_samples <= 0:
             return self.test_dataloader()
+        skip = self.predict_skip() if callable(self.predict_skip) else self.predict_skip
         self.predict_set = LatentIndices(hp.predict_samples, hp.predict_seed,
-                                         hp.predict_temperature, skip=self.predict_skip)
+                                         hp.predict_temperature, skip=skip)
         return TorchDataLoader(self.predict_set, batch_size=max(hp.batch_size, 1))

@@ -11,11 +11,16 @@ spread over devices and processes (``robovae predict --config configs/generate.y
 - :meth:`RoboVAE.predict_step <robovae.model.vae.RoboVAE.predict_step>` decodes them.
 - :class:`RobotWriter` (a :class:`~lightning.pytorch.callbacks.BasePredictionWriter`) writes the
   folders, validates them and appends to ``manifest-rank<r>.jsonl``; rank 0 writes the summary.
+  Like ``generate``, it ties the folder to its run (``run.json``: model fingerprint, seed,
+  temperature): resuming a folder of another checkpoint or seed is refused with one line, and a
+  folder started by ``robovae generate`` can be resumed by ``robovae predict`` and vice versa.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +29,30 @@ import torch
 from lightning.pytorch.callbacks import BasePredictionWriter
 
 from robovae.data.latents import LatentIndices  # noqa: F401  (re-exported)
-from robovae.generate.pipeline import append_records, read_manifest, summarize, write_records
+from robovae.errors import RobovaeError
+from robovae.generate.pipeline import (
+    RUN,
+    _open_manifest,
+    append_records,
+    claim,
+    model_fingerprint,
+    read_manifest,
+    summarize,
+    worker_pool,
+    write_records,
+)
+
+
+class _Float32Weights:
+    """A model's weights as ``generate`` fingerprints them (float32, as trained), whatever the
+    precision of the predict run (``64-true`` turns them into exact float64 copies)."""
+
+    def __init__(self, module: torch.nn.Module) -> None:
+        self.module = module
+
+    def state_dict(self) -> dict[str, torch.Tensor]:
+        return {k: v.float() if v.is_floating_point() else v
+                for k, v in self.module.state_dict().items()}
 
 
 class RobotWriter(BasePredictionWriter):
@@ -43,6 +71,7 @@ class RobotWriter(BasePredictionWriter):
         self.out = Path(output_dir)
         self.validate, self.scene, self.jobs = validate, scene, jobs
         self.report = None
+        self._pool: Executor | None = None
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
         if stage != "predict":
@@ -50,7 +79,34 @@ class RobotWriter(BasePredictionWriter):
         self.out.mkdir(parents=True, exist_ok=True)
         dm = trainer.datamodule
         if dm is not None and hasattr(dm, "predict_skip"):
-            dm.predict_skip = sorted(read_manifest(self.out))
+            # asked for when the datamodule builds the predict set: the weights are restored
+            # from the checkpoint by then (they are not yet during setup)
+            dm.predict_skip = lambda: self.done(trainer, pl_module)
+
+    def done(self, trainer: L.Trainer, pl_module: L.LightningModule) -> list[int]:
+        """Claim the folder for this run and list the robots already in it (every rank).
+
+        Rank 0 claims (``run.json``), then every rank checks ``run.json`` itself, so that all
+        ranks stop together on a refusal; all ranks have read the manifests before any writes.
+        """
+        hp = trainer.datamodule.hparams
+        run = {"model": model_fingerprint(_Float32Weights(pl_module)),
+               "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
+               "feature_set": pl_module.feature_set.name, "floating": True}
+        refused = None
+        if trainer.is_global_zero:
+            try:
+                claim(self.out, run)
+            except RobovaeError as e:
+                refused = e
+        trainer.strategy.barrier()
+        path = self.out / RUN
+        if not path.is_file() or json.loads(path.read_text()) != run:
+            raise refused or RobovaeError(f"robovae: {self.out}: holds robots of another run; "
+                                          "use another output_dir")
+        skip = sorted(read_manifest(self.out))
+        trainer.strategy.barrier()
+        return skip
 
     def write_on_batch_end(self, trainer: L.Trainer, pl_module: L.LightningModule,
                            prediction: Any, batch_indices: Sequence[int] | None, batch: Any,
@@ -59,12 +115,20 @@ class RobotWriter(BasePredictionWriter):
             raise TypeError("robovae: RobotWriter needs latent batches (set "
                             "data.predict_samples > 0)")
         jobs = self.jobs or max(1, (torch.get_num_threads() or 1) // trainer.world_size)
+        if jobs > 1 and self._pool is None and len(prediction["graphs"]) >= 4:
+            self._pool = worker_pool(jobs)  # one pool for the whole run, not one per batch
         records = write_records(pl_module, prediction["index"].tolist(), prediction["z"],
                                 prediction["graphs"], self.out, seed=prediction["seed"],
                                 temperature=prediction["temperature"], validate=self.validate,
-                                jobs=jobs, scene=self.scene)
-        with (self.out / f"manifest-rank{trainer.global_rank}.jsonl").open("a") as manifest:
+                                jobs=jobs, scene=self.scene, pool=self._pool)
+        # (a torn last line of a killed run is terminated first, as by generate)
+        with _open_manifest(self.out / f"manifest-rank{trainer.global_rank}.jsonl") as manifest:
             append_records(manifest, records)
+
+    def teardown(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
 
     def on_predict_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
         trainer.strategy.barrier()

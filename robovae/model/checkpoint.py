@@ -3,16 +3,64 @@
 Checkpoints are read with ``torch.load(weights_only=True)``: tensors, numbers, strings and
 containers only, never arbitrary pickled objects, so a checkpoint cannot run code when it is
 loaded. A file that needs more than that is refused with one line.
+
+The same rule holds for the Lightning CLI (``robovae fit|validate|test|predict --ckpt_path``):
+:mod:`robovae.model.cli` checks the file with :func:`read_checkpoint` before Lightning reads
+it, and passes ``weights_only=True`` to the trainer (Lightning's own default, ``None``, defers to
+``torch.load``, which an environment variable can turn into full unpickling).
 """
 
 from __future__ import annotations
 
+import re
+import zipfile
 from pathlib import Path
 
 import torch
 
 from robovae.errors import RobovaeError
 from robovae.model.vae import RoboVAE
+
+
+def refusal(path: str | Path | None, e: BaseException) -> RobovaeError:
+    """The one-line error of a checkpoint ``torch.load(weights_only=True)`` refused with ``e``
+    (for a planted object: the global it names, e.g. ``GLOBAL posix.system``)."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(e))
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    found = re.search(r"GLOBAL ([\w.]+)", text)
+    if found:  # torch names the global it would have had to import
+        reason = f"it holds a pickled object, not plain weights: GLOBAL {found.group(1)}"
+    elif "Weights only load failed" in text:
+        tail = [ln.strip() for ln in text.partition("WeightsUnpickler error:")[2].splitlines()
+                if ln.strip()]
+        reason = "not a weights-only checkpoint" + (f": {tail[0].rstrip('.')}" if tail else "")
+    else:
+        reason = lines[0].split(". ")[0].rstrip(".") if lines else type(e).__name__
+    where = f" {path}:" if path is not None else ""
+    return RobovaeError(f"robovae:{where} refused to load checkpoint ({reason})")
+
+
+def read_checkpoint(path: str | Path) -> dict:
+    """The contents of a checkpoint file, read with ``torch.load(weights_only=True)``.
+
+    Raises:
+        RobovaeError: missing file, not a checkpoint, or a checkpoint that holds anything but
+            tensors, numbers, strings and containers (no pickled object is ever built).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise RobovaeError(f"robovae: {path}: no such checkpoint")
+    if not zipfile.is_zipfile(path):  # torch.save has written zip archives since torch 1.6
+        raise RobovaeError(f"robovae: {path}: not a checkpoint (not a zip archive: another "
+                           "kind of file, or one cut short)")
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # UnpicklingError for planted objects, RuntimeError for bad zips
+        raise refusal(path, e) from None
+    if not isinstance(ckpt, dict):
+        raise RobovaeError(f"robovae: {path}: not a Lightning checkpoint "
+                           f"(a {type(ckpt).__name__})")
+    return ckpt
 
 
 def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> RoboVAE:
@@ -22,11 +70,10 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> Ro
         RobovaeError: missing file, or a checkpoint that is not plain weights + settings.
     """
     path = Path(path)
-    if not path.is_file():
-        raise RobovaeError(f"robovae: {path}: no such checkpoint")
+    if "state_dict" not in read_checkpoint(path):  # the same one-line refusals everywhere
+        raise RobovaeError(f"robovae: {path}: not a Lightning checkpoint (no state_dict)")
     try:
         model = RoboVAE.load_from_checkpoint(path, map_location=map_location, weights_only=True)
-    except Exception as e:  # UnpicklingError for planted objects, RuntimeError for bad zips
-        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise RobovaeError(f"robovae: {path}: refused to load checkpoint ({first})") from None
+    except Exception as e:  # weights of another model (shapes, names), bad hyperparameters
+        raise refusal(path, e) from None
     return model.eval()

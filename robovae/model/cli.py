@@ -1,23 +1,38 @@
 """``robovae fit|validate|test|predict``: the Lightning CLI over :class:`RoboVAE` and
 :class:`RobotDataModule`.
 
-Defaults: CSV logger under ``runs/``, a :class:`ModelCheckpoint` keeping ``last.ckpt``
-(``checkpoint.*`` options), the :class:`ReconstructionMetrics` callback (``metrics.*``), seed 0.
-``data.feature_set`` is linked to ``model.feature_set``. Switch to Weights & Biases (offline by
-default) with ``--config configs/loggers/wandb.yaml``.
+Defaults: CSV logger under ``runs/``, a :class:`ModelCheckpoint` writing ``last.ckpt`` (and
+``epoch=E-step=S.ckpt``, the newest only) at the end of every epoch (``checkpoint.*`` options),
+the :class:`ReconstructionMetrics` callback (``metrics.*``), seed 0. ``data.feature_set`` is
+linked to ``model.feature_set``. Switch to Weights & Biases (offline by default) with
+``--config configs/loggers/wandb.yaml``.
+
+Checkpoints are never unpickled: an explicit ``--ckpt_path FILE`` is checked with
+:func:`~robovae.model.checkpoint.read_checkpoint` (``torch.load(weights_only=True)``) before
+Lightning touches it, the trainer gets ``weights_only=True`` unless ``--weights_only`` says
+otherwise, and a refused checkpoint is one line on stderr (exit code 2), not a traceback.
+Resume a killed run with ``robovae fit --config X.yaml --ckpt_path last`` (Lightning picks the
+newest ``last*.ckpt`` of the checkpoint folder; the run continues exactly, see
+:mod:`robovae.model.vae`).
 """
 
 from __future__ import annotations
 
+import pickle
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 
 from robovae.data.datamodule import RobotDataModule
 from robovae.evaluate.callbacks import ReconstructionMetrics
+from robovae.model.checkpoint import read_checkpoint, refusal
 from robovae.model.vae import RoboVAE
+
+# ``ckpt_path`` values that Lightning resolves itself (the file is checked when it is read)
+_CKPT_KEYWORDS = ("last", "best", "hpc", "registry")
 
 
 class RoboVAECLI(LightningCLI):
@@ -26,14 +41,40 @@ class RoboVAECLI(LightningCLI):
     def add_arguments_to_parser(self, parser: LightningArgumentParser) -> None:
         parser.link_arguments("data.feature_set", "model.feature_set")
         parser.add_lightning_class_args(ModelCheckpoint, "checkpoint")
-        parser.set_defaults({"checkpoint.save_last": True, "checkpoint.save_top_k": 0})
+        # save_top_k=1 without a monitor keeps the newest epoch's checkpoint; Lightning 2.6 writes
+        # last.ckpt only together with such a save, so with save_top_k=0 a killed run had none
+        parser.set_defaults({"checkpoint.save_last": True, "checkpoint.save_top_k": 1})
         parser.add_lightning_class_args(ReconstructionMetrics, "metrics")
+
+    def parse_arguments(self, parser: LightningArgumentParser, args) -> None:
+        """Parse, then refuse an unsafe ``ckpt_path`` before anything reads it (LightningCLI
+        itself loads its hyperparameters right after parsing)."""
+        super().parse_arguments(parser, args)
+        sub = self.config.get("subcommand")
+        ckpt = self.config[sub].get("ckpt_path") if sub else None
+        if ckpt and not (str(ckpt) in _CKPT_KEYWORDS or str(ckpt).startswith("registry:")
+                         or "://" in str(ckpt)):
+            read_checkpoint(Path(ckpt))  # one-line RobovaeError; builds no object
+
+    def _weights_only(self) -> None:
+        kwargs = self.config_init[self.subcommand]
+        if "weights_only" in kwargs and kwargs["weights_only"] is None:
+            kwargs["weights_only"] = True
+
+    before_fit = before_validate = before_test = before_predict = _weights_only
 
 
 def run_lightning_cli(argv: Sequence[str] | None = None) -> RoboVAECLI:
     """Run the Lightning CLI on ``argv`` (``["fit", "--config", ...]``; ``None``: sys.argv)."""
     warnings.filterwarnings("ignore", ".*does not have many workers.*")
     warnings.filterwarnings("ignore", ".*smaller than the logging interval.*")
+    try:
+        return _cli(argv)
+    except pickle.UnpicklingError as e:  # a checkpoint Lightning found itself (``last``)
+        raise refusal(None, e) from None
+
+
+def _cli(argv: Sequence[str] | None) -> RoboVAECLI:
     return RoboVAECLI(
         RoboVAE,
         RobotDataModule,

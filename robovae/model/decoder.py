@@ -19,6 +19,14 @@ embeddings of the node's depth and of its number of children generated so far (b
 paper's §5 failure mode ("a node on the root always expands into a full limb") is a topology
 head that cannot tell where it is; ``topo_context=False`` is exactly eq. 9.
 
+**Decoder inputs** (``inputs``): with ``"features"`` (the paper), ``x_i`` above and the GRU inputs
+``x^p`` are the node features: the true ones under teacher forcing, the decoder's own predictions
+when decoding, so a feature error can flip a later topology decision (exposure bias), and an
+unseen robot's unfamiliar feature values reach every decision. With ``"types"``, ``x_i`` is the
+one-hot node type: the messages then carry the tree built so far (types, depths, sibling order)
+and ``z`` alone carries the robot; teacher forcing and decoding see identical inputs whenever the
+types are right. Features are predicted the same way (eq. 10) in both modes.
+
 Each generated node ``c`` gets (eq. 10–11) ``a = ReLU(W_1^l z + W_2^l h_{p->c})``,
 features ``f_c = U^l a`` and type logits ``U^c a`` (a categorical head over ``num_types``; absent
 when there is a single type). The **root** has no parent message: it is predicted from ``z``
@@ -30,10 +38,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import torch
+import torch.nn.functional as F
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
 from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
+
+#: what the decoder reads of each node (:class:`TreeDecoder` ``inputs``)
+INPUT_MODES = ("features", "types")
 
 
 @dataclass
@@ -124,16 +136,22 @@ class TreeDecoder(nn.Module):
             get zeros outside their type's columns, as real inputs have, so that decoding sees
             what teacher forcing saw. Default: every column belongs to every type.
         max_depth_embed, max_children_embed: clamps of the context embeddings.
+        inputs: ``"features"`` (eq. 9–10 as published) or ``"types"`` (module docstring).
     """
 
     def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
                  topo_context: bool = True, type_mask: Tensor | None = None,
-                 max_depth_embed: int = 32, max_children_embed: int = 16) -> None:
+                 max_depth_embed: int = 32, max_children_embed: int = 16,
+                 inputs: str = "features") -> None:
         super().__init__()
+        if inputs not in INPUT_MODES:
+            raise ValueError(f"decoder inputs must be one of {INPUT_MODES}, got {inputs!r}")
         self.feat_dim, self.num_types, self.hidden_dim = feat_dim, num_types, hidden_dim
-        self.proj = nn.Linear(feat_dim, hidden_dim, bias=False)
+        self.inputs = inputs
+        in_dim = feat_dim if inputs == "features" else num_types
+        self.proj = nn.Linear(in_dim, hidden_dim, bias=False)
         self.cell = TreeGRUCell(hidden_dim)
-        self.topo = TopoHead(feat_dim, hidden_dim, latent_dim, topo_context, max_depth_embed,
+        self.topo = TopoHead(in_dim, hidden_dim, latent_dim, topo_context, max_depth_embed,
                              max_children_embed)
         self.W1_l = nn.Linear(latent_dim, hidden_dim)
         self.W2_l = nn.Linear(hidden_dim, hidden_dim, bias=False)
@@ -141,6 +159,12 @@ class TreeDecoder(nn.Module):
         self.U_c = nn.Linear(hidden_dim, num_types) if num_types > 1 else None
         mask = torch.ones(num_types, feat_dim, dtype=torch.bool) if type_mask is None else type_mask
         self.register_buffer("type_mask", mask.bool().clone(), persistent=False)
+
+    def node_inputs(self, x: Tensor, node_type: Tensor) -> Tensor:
+        """What the decoder reads of a node (``inputs``): its features, or its one-hot type."""
+        if self.inputs == "features":
+            return x
+        return F.one_hot(node_type, self.num_types).to(x.dtype)
 
     def node_heads(self, zl: Tensor, h: Tensor) -> tuple[Tensor, Tensor]:
         """eq. 10–11: ``(features, type logits)`` from ``zl = W_1^l z`` and ``h = h_{p->c}``."""
@@ -161,20 +185,22 @@ class TreeDecoder(nn.Module):
         passes when they were already computed (e.g. together with the encoder's).
         """
         sched = tree_schedule(batch) if sched is None else sched
+        xin = self.node_inputs(batch.x, batch.node_type)
         if messages is None:
-            px = self.project_levels(batch.x, sched)
+            px = self.project_levels(xin, sched)
             messages = tuple(t[0] for t in level_messages([self.cell], px[None], sched, 0))
         down, total, sdown = messages
         node, count, target, which, graph = decision_index(sched)
         inward_t = torch.cat([sdown, total]).index_select(0, which)
-        logits = self.topo(batch.x.index_select(0, node), self.topo.W2(z).index_select(0, graph),
+        logits = self.topo(xin.index_select(0, node), self.topo.W2(z).index_select(0, graph),
                            inward_t, sched.depth.index_select(0, node), count)
         feat, types = self.node_heads(self.W1_l(z).index_select(0, sched.graph),
                                       down.index_select(0, sched.inv))
         return DecoderOutput(logits, target, graph, node, feat, types)
 
     def project_levels(self, x: Tensor, sched: TreeSchedule) -> Tensor:
-        """``cell.project(proj(x))`` with the rows in level order, ``[N, 3H]``."""
+        """``cell.project(proj(x))`` with the rows in level order, ``[N, 3H]``; ``x`` is the
+        :meth:`node_inputs` of the batch (node order)."""
         return self.cell.project(x.index_select(0, sched.order), self.proj.weight)
 
     forward = teacher_forcing
@@ -212,7 +238,7 @@ class TreeDecoder(nn.Module):
         lat = torch.arange(b, device=dev)
         feat, types = self._new_nodes(zl, z.new_zeros(b, hid))
         cur = buf.add(lat, torch.full_like(lat, -1), torch.zeros_like(lat), types, feat,
-                      self._px(feat), z.new_zeros(b, hid))
+                      self._px(feat, types), z.new_zeros(b, hid))
         count = torch.ones_like(lat)
         active = count < max_nodes
         for _ in range(2 * max_nodes):
@@ -221,7 +247,8 @@ class TreeDecoder(nn.Module):
                 break
             i = cur[act]
             inward = buf.down[i] + buf.csum[i]
-            logit = self.topo(buf.x[i], zt[act], inward, buf.depth[i], buf.nchild[i])
+            logit = self.topo(self.node_inputs(buf.x[i], buf.type[i]), zt[act], inward,
+                              buf.depth[i], buf.nchild[i])
             expand = (logit > 0) & (buf.depth[i] < max_depth)
             pxi = buf.px[i]
             s = torch.where(expand[:, None], inward, buf.csum[i])
@@ -232,7 +259,8 @@ class TreeDecoder(nn.Module):
             if e.numel():  # expanders create a child and move into it
                 be, pe = act[e], i[e]
                 feat, types = self._new_nodes(zl[be], h[e])
-                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, self._px(feat), h[e])
+                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, self._px(feat, types),
+                                  h[e])
                 buf.nchild[pe] += 1
                 count[be] += 1
             if k.numel():  # backtrackers send their up message and move to their parent
@@ -247,8 +275,8 @@ class TreeDecoder(nn.Module):
             active &= count < max_nodes
         return buf.split(b)
 
-    def _px(self, x: Tensor) -> Tensor:
-        return self.cell.project(self.proj(x))
+    def _px(self, x: Tensor, node_type: Tensor) -> Tensor:
+        return self.cell.project(self.proj(self.node_inputs(x, node_type)))
 
     def _new_nodes(self, zl: Tensor, h: Tensor) -> tuple[Tensor, Tensor]:
         feat, logits = self.node_heads(zl, h)

@@ -6,23 +6,39 @@ alone can encode robot files and decode robots in physical units.
 
 Loss (eq. 12–13):  L = Σ_t BCE(p_t, p̂_t) + Σ_j [MSE(f_j, f̂_j) + CE(s_j, ŝ_j)] + β L_KL,
 with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``.
+
+Reproducible training: the randomness of an epoch — the shuffle order of a single-process
+training loader (a ``RandomSampler``) and the reparametrisation noise of each batch — is drawn
+from generators seeded by the run's seed (``seed_everything``), the epoch, the batch index and
+the rank, never from the global RNG. A run killed and resumed from an end-of-epoch checkpoint
+(``robovae fit ... --ckpt_path last``) therefore continues exactly like an uninterrupted run.
+Under DDP, Lightning's ``DistributedSampler`` shuffles by ``(seed, epoch)`` already.
 """
 
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Mapping, Sequence
 
 import lightning as L
+import numpy as np
 import torch
 from torch import Tensor
+from torch.utils.data import DataLoader, RandomSampler
 from torch_geometric.data import Batch, Data
 
 from robovae.data.features import Normalizer, get_feature_set
 from robovae.data.graph import RobotData, tree_data
+from robovae.errors import RobovaeError
+from robovae.model.augment import jitter_features
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
 from robovae.model.tree import level_messages, tree_schedule
+
+# streams of :meth:`RoboVAE.run_seed`
+_SHUFFLE, _NOISE = 1, 2
 
 
 class RoboVAE(L.LightningModule):
@@ -42,6 +58,11 @@ class RoboVAE(L.LightningModule):
         support_margin: decoded features are clipped to the training range of each column
             widened by this fraction of its width (``None``: no clipping). Keeps prior samples
             on the support of the data: a log-scaled mass far outside it would be e^20 kg.
+        decoder_inputs: what the decoder reads of each node, ``"features"`` (eq. 9–10) or
+            ``"types"`` (one-hot node type; :mod:`robovae.model.decoder`).
+        feature_shift, feature_noise: training-time feature augmentation
+            (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
+            feature column and of per-node noise, in normalised units (0: off).
     """
 
     def __init__(
@@ -60,6 +81,9 @@ class RoboVAE(L.LightningModule):
         max_depth: int = 64,
         topo_context: bool = True,
         support_margin: float | None = 0.1,
+        feature_shift: float = 0.0,
+        feature_noise: float = 0.0,
+        decoder_inputs: str = "features",
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -68,7 +92,8 @@ class RoboVAE(L.LightningModule):
         self.normalizer = Normalizer(fs)
         self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
-                                   topo_context=topo_context, type_mask=fs.type_mask())
+                                   topo_context=topo_context, type_mask=fs.type_mask(),
+                                   inputs=decoder_inputs)
         self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------
@@ -111,35 +136,77 @@ class RoboVAE(L.LightningModule):
         frac = min(1.0, epoch / hp.beta_warmup_epochs)
         return hp.beta_start + frac * (hp.beta - hp.beta_start)
 
-    def forward(self, batch: Batch, sample: bool = True) -> dict[str, Tensor]:
-        """Loss terms of a batch of physical-unit robot graphs (teacher forcing)."""
+    def run_seed(self, *keys: int) -> int:
+        """A seed derived from the run's seed (``seed_everything``'s ``PL_GLOBAL_SEED``, else
+        ``torch.initial_seed()``) and ``keys`` (stream, epoch, batch, rank)."""
+        base = os.environ.get("PL_GLOBAL_SEED")
+        base = int(base) if base is not None and base.lstrip("-").isdigit() \
+            else torch.initial_seed()
+        entropy = [abs(int(k)) for k in (base, *keys)]
+        return int(np.random.SeedSequence(entropy).generate_state(2, np.uint64)[0] >> 1)
+
+    def on_train_epoch_start(self) -> None:
+        """Seed this epoch's shuffle order from ``(seed, epoch)`` (see the module docstring):
+        the global RNG is not part of a checkpoint, the epoch is."""
+        loaders = self.trainer.train_dataloader
+        if isinstance(loaders, Mapping):
+            loaders = list(loaders.values())
+        elif not isinstance(loaders, Sequence):
+            loaders = [loaders]
+        for k, dl in enumerate(loaders):
+            sampler = getattr(dl, "sampler", None) if isinstance(dl, DataLoader) else None
+            if isinstance(sampler, RandomSampler):
+                sampler.generator = torch.Generator().manual_seed(
+                    self.run_seed(_SHUFFLE, self.current_epoch, k, self.global_rank))
+
+    def forward(self, batch: Batch, sample: bool = True,
+                generator: torch.Generator | None = None) -> dict[str, Tensor]:
+        """Loss terms of a batch of physical-unit robot graphs (teacher forcing). With
+        ``sample``, ``z`` is drawn from ``q(z | G)`` (noise from ``generator`` when given)."""
         nb = self.normalized(batch)
         sched = tree_schedule(nb)
+        hp = self.hparams
+        if sample and self.training and (hp.feature_shift > 0 or hp.feature_noise > 0):
+            nb.x = jitter_features(nb.x, nb.x_mask, sched.graph, sched.num_graphs,
+                                   hp.feature_shift, hp.feature_noise,
+                                   keep=self.normalizer.is_cat, generator=generator)
         # the decoder's teacher-forced messages do not depend on z: run the encoder's and the
         # decoder's level passes together (one stacked pass, the same as two separate ones)
         enc, dec = self.encoder, self.decoder
         x = nb.x.index_select(0, sched.order)  # level order
+        xd = dec.node_inputs(x, nb.node_type.index_select(0, sched.order))
         px = torch.stack([enc.cell.project(x, enc.proj.weight),
-                          dec.cell.project(x, dec.proj.weight)])
+                          dec.cell.project(xd, dec.proj.weight)])
         down, total, sdown = level_messages([enc.cell, dec.cell], px, sched, num_encoder=1)
         mu, logvar = enc.readout(x, total[0], sched)
-        z = reparametrize(mu, logvar) if sample else mu
+        if not sample:
+            z = mu
+        elif generator is None:
+            z = reparametrize(mu, logvar)
+        else:  # the same formula, with this batch's own noise
+            eps = torch.randn(mu.shape, generator=generator, dtype=mu.dtype, device=mu.device)
+            z = mu + eps * torch.exp(0.5 * logvar)
         out = dec.teacher_forcing(z, nb, sched, messages=(down[1], total[1], sdown[1]))
         return vae_loss(out, nb, mu, logvar, self.beta_at(self.current_epoch))
 
-    def _step(self, batch: Batch, stage: str) -> Tensor:
-        terms = self(batch, sample=stage == "train")
+    def _step(self, batch: Batch, stage: str, batch_idx: int = 0) -> Tensor:
+        gen = None
+        if stage == "train":  # noise of (seed, epoch, batch, rank): resumable, see the docstring
+            gen = torch.Generator(device=self.device).manual_seed(
+                self.run_seed(_NOISE, self.current_epoch, batch_idx, self.global_rank))
+        terms = self(batch, sample=stage == "train", generator=gen)
         bs = batch.num_graphs
+        # sync_dist: under DDP the epoch value is the mean over all ranks' robots
         for k in ("loss", "topo", "feat", "type", "kl"):
             self.log(f"{stage}/{k}", terms[k], batch_size=bs, prog_bar=k == "loss",
-                     on_epoch=True, on_step=False)
+                     on_epoch=True, on_step=False, sync_dist=True)
         if stage == "train":
             self.log("train/beta", self.beta_at(self.current_epoch), batch_size=bs,
-                     on_epoch=True, on_step=False)
+                     on_epoch=True, on_step=False, sync_dist=True)
         return terms["loss"]
 
     def training_step(self, batch: Batch, batch_idx: int) -> Tensor:
-        return self._step(batch, "train")
+        return self._step(batch, "train", batch_idx)
 
     def validation_step(self, batch: Batch, batch_idx: int) -> Tensor:
         return self._step(batch, "val")
@@ -185,20 +252,71 @@ class RoboVAE(L.LightningModule):
             batch = Batch.from_data_list([batch])
         return self.encoder(self.normalized(batch.to(self.device)))
 
+    def check_latents(self, z: Tensor) -> Tensor:
+        """``z`` as a ``[B, latent_dim]`` tensor of the model's dtype and device.
+
+        Raises:
+            RobovaeError: (one line) not a ``[B, latent_dim]`` or ``[latent_dim]`` array of
+                numbers, or rows holding NaN or ±inf — also after conversion to the model's
+                dtype (1e300 overflows float32).
+        """
+        dim = self.hparams.latent_dim
+        try:
+            z = torch.as_tensor(z)
+        except Exception as e:  # lists of strings, ragged lists, ...
+            raise RobovaeError(f"robovae: latents must be numbers ({type(e).__name__})") \
+                from None
+        shape = list(z.shape)
+        if z.dim() == 1:
+            z = z[None]
+        if z.dim() != 2 or z.shape[1] != dim:
+            raise RobovaeError(f"robovae: latents must have shape [B, {dim}] or [{dim}], "
+                               f"got {shape}")
+        if z.is_complex() or z.dtype == torch.bool:
+            raise RobovaeError(f"robovae: latents must be real numbers, got {z.dtype}")
+        z = z.to(self.device, self.dtype)
+        bad = (~torch.isfinite(z)).any(1)
+        if bool(bad.any()):
+            rows = bad.nonzero().flatten().tolist()
+            more = f" and {len(rows) - 10} more" if len(rows) > 10 else ""
+            raise RobovaeError(f"robovae: latents must be finite {str(self.dtype)[6:]} values; "
+                               f"rows {rows[:10]}{more} hold NaN or inf")
+        return z
+
     @torch.no_grad()
     def decode(self, z: Tensor, max_nodes: int | None = None,
                max_depth: int | None = None) -> list[RobotData]:
         """Greedy autoregressive decoding of latents ``z`` [B, latent] into robot graphs with
-        physical feature values."""
+        physical feature values.
+
+        Any latent the model can represent decodes within the limits (at most ``max_nodes``
+        nodes, depth at most ``max_depth``; defaults from the hyperparameters), however large:
+        huge values saturate the decoder (overflowing logits count as "backtrack"). What cannot
+        be decoded is refused with a one-line :class:`~robovae.errors.RobovaeError`: a wrong
+        shape, NaN/inf rows (:meth:`check_latents`), or — only without ``support_margin`` — a
+        latent so large that its decoded features overflow to NaN/inf (the rows are named).
+        """
         hp = self.hparams
-        trees = self.decoder.decode(z.to(self.device, self.dtype),
-                                    max_nodes=max_nodes or hp.max_nodes,
-                                    max_depth=max_depth or hp.max_depth)
-        out = []
+        max_nodes = hp.max_nodes if max_nodes is None else max_nodes
+        max_depth = hp.max_depth if max_depth is None else max_depth
+        if int(max_nodes) < 1 or int(max_depth) < 0:
+            raise RobovaeError(f"robovae: decoding needs max_nodes >= 1 and max_depth >= 0, "
+                               f"got {max_nodes} and {max_depth}")
+        z = self.check_latents(z)
+        if z.shape[0] == 0:
+            return []
+        trees = self.decoder.decode(z, max_nodes=int(max_nodes), max_depth=int(max_depth))
+        out, bad = [], []
         for i, (parent, node_type, x) in enumerate(trees):
             phys = self.normalizer.inverse(x, node_type, clamp=hp.support_margin)
             out.append(tree_data(parent.cpu(), node_type.cpu(), phys.cpu(), self.feature_set,
                                  name=f"decoded_{i}", source="robovae.decode"))
+            if not bool(torch.isfinite(out[-1].x).all()):  # (robot graphs hold float32)
+                bad.append(i)
+        if bad:
+            more = f" and {len(bad) - 10} more" if len(bad) > 10 else ""
+            raise RobovaeError(f"robovae: latents too large: rows {bad[:10]}{more} decode to "
+                               "non-finite features (use a support_margin)")
         return out
 
     @torch.no_grad()
