@@ -3,6 +3,8 @@
 ``robovae data``       build a dataset and print one row per robot;
 ``robovae generate``   sample robots from a checkpoint, write MJCF, validate, report;
 ``robovae render``     PNG contact sheets and original-vs-reconstruction pictures;
+``robovae analyze``    statistics of the design space: descriptors, KL/MMD/coverage, latent
+                       entropy, MuJoCo state entropy and standing test;
 ``robovae fit|validate|test|predict``  the Lightning CLI (model + data from a YAML config).
 """
 
@@ -78,6 +80,20 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_analyze(args: argparse.Namespace) -> int:
+    """Statistical view of a checkpoint's training robots and (optionally) its samples."""
+    from robovae.evaluate.analyze import analyze, format_report, save_json
+
+    result = analyze(args.ckpt, samples=args.samples, sources=args.source, root=args.root,
+                     behaviour=args.behaviour, jobs=args.jobs, permutations=args.permutations,
+                     seed=args.seed, max_samples=args.max_samples,
+                     entropy_seconds=args.entropy_seconds)
+    print(format_report(result))
+    if args.json:
+        print(f"json: {save_json(result, args.json)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="robovae", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -117,6 +133,24 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--first", type=int, default=20, help="robots on the contact sheet")
     r.add_argument("--columns", type=int, default=5)
     r.set_defaults(func=cmd_render)
+    a = sub.add_parser("analyze", help="descriptor statistics, KL/MMD/coverage against the "
+                       "training robots, latent entropy, MuJoCo state entropy and standing test")
+    a.add_argument("--ckpt", required=True, help="Lightning checkpoint (e.g. last.ckpt)")
+    a.add_argument("--samples", help="folder written by robovae generate (valid robots used)")
+    a.add_argument("--source", action="append", default=None,
+                   help="data source of the training robots (repeatable; default: the "
+                        "checkpoint's)")
+    a.add_argument("--root", default="data_cache", help="dataset cache folder")
+    a.add_argument("--json", help="write the full result (per-robot rows too) to this file")
+    a.add_argument("--behaviour", type=int, default=100,
+                   help="MuJoCo measures on at most this many robots per population (0: none)")
+    a.add_argument("--entropy-seconds", type=float, default=3.0,
+                   help="length of each random-actuation episode")
+    a.add_argument("--max-samples", type=int, default=None, help="use the first N samples")
+    a.add_argument("--permutations", type=int, default=200, help="MMD permutation test size")
+    a.add_argument("--seed", type=int, default=0)
+    a.add_argument("--jobs", type=int, default=0, help="MuJoCo worker processes (0: all cores)")
+    a.set_defaults(func=cmd_analyze)
     for name in LIGHTNING_COMMANDS:
         sub.add_parser(name, help=f"Lightning CLI: {name} (see robovae {name} --help)",
                        add_help=False)

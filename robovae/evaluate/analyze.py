@@ -1,0 +1,292 @@
+"""``robovae analyze``: the statistical view of a checkpoint's design space (paper §6.2).
+
+:func:`analyze` compares two populations of robots:
+
+- **training**: the robots the checkpoint was trained on — the dataset of its data sources
+  (or ``sources``) restricted to the names stored in the checkpoint (every robot of the
+  sources when none of those names is found);
+- **samples** (optional): a folder of generated robots (``robovae generate --out DIR``; the
+  valid robots of its manifest, loaded back from their ``robot.xml``).
+
+and reports, for each population, descriptor statistics
+(:mod:`robovae.evaluate.population`), latent statistics of the encoded means (Gaussian and
+k-NN entropy, effective dimensionality), MuJoCo behaviour (random-actuation state entropy and
+the standing test, :mod:`robovae.evaluate.behaviour`) on up to ``behaviour`` robots, and
+between the populations the KL per descriptor, MMD² and coverage.
+:func:`format_report` prints the tables; the result is JSON-ready (NaN → ``null``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch_geometric.data import Batch
+
+from robovae.data.graph import RobotData
+from robovae.errors import RobovaeError
+from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
+from robovae.evaluate.population import (
+    DESCRIPTORS,
+    compare,
+    descriptors,
+    latent_stats,
+    load_graphs,
+    robot_category,
+    sample_files,
+    summary,
+)
+from robovae.model.checkpoint import load_model, read_checkpoint
+from robovae.model.vae import RoboVAE
+
+
+@torch.no_grad()
+def encode_means(model: RoboVAE, graphs: Sequence[RobotData], batch_size: int = 128
+                 ) -> np.ndarray:
+    """Encoded means ``mu`` ``[N, latent_dim]`` of robot graphs (physical units).
+
+    Runs on one CPU thread: the encoder's per-level matrix products are small, and on a busy
+    machine two OpenMP threads made them ~70 times slower than one (measured on 2 cores).
+    """
+    out = []
+    threads = torch.get_num_threads()
+    if model.device.type == "cpu":
+        torch.set_num_threads(1)
+    try:
+        for k in range(0, len(graphs), batch_size):
+            mu, _ = model.encode(Batch.from_data_list(list(graphs[k:k + batch_size])))
+            out.append(mu.double().cpu().numpy())
+    finally:
+        torch.set_num_threads(threads)
+    return np.concatenate(out) if out else np.zeros((0, model.hparams.latent_dim))
+
+
+def training_graphs(model: RoboVAE, ckpt: str | Path | None = None,
+                    sources: Sequence[str] | None = None, root: str | Path = "data_cache"
+                    ) -> tuple[list[RobotData], str]:
+    """The checkpoint's training robots and a one-line description of where they came from."""
+    from robovae.data.dataset import RobotDataset
+
+    if not sources:
+        dm = read_checkpoint(ckpt).get("datamodule_hyper_parameters", {}) if ckpt else {}
+        sources = list(dm.get("sources") or ["zoo"])
+    ds = RobotDataset(root, list(sources), model.feature_set.name, progress=False)
+    names = {r.get("name") for r in model.training_robots}
+    graphs = [d for d in ds if d.name in names]
+    what = f"{len(graphs)} training robots of {', '.join(sources)}"
+    if not graphs:
+        graphs = list(ds)
+        what = f"all {len(graphs)} robots of {', '.join(sources)} (no training names matched)"
+    return graphs, what
+
+
+def _population(model: RoboVAE, graphs: Sequence[RobotData], files: Sequence[str | None],
+                behaviour: int, jobs: int, match: int | None = None,
+                entropy_kw: dict | None = None) -> dict:
+    records = []
+    for g in graphs:
+        rec = descriptors(g, model.feature_set)
+        rec["category"] = robot_category(rec["name"], g)
+        records.append(rec)
+    mu = encode_means(model, graphs)
+    out = {"robots": len(graphs), "records": records, "summary": summary(records),
+           "latent": latent_stats(mu, match=match)}
+    chosen = [(r, f) for r, f in zip(records, files) if f][: max(behaviour, 0)]
+    if chosen:
+        rows = behaviour_many([f for _, f in chosen], jobs=jobs, entropy=entropy_kw)
+        for (rec, _), row in zip(chosen, rows):
+            row["name"], row["category"] = rec["name"], rec["category"]
+        out["behaviour"] = rows
+        out["behaviour_summary"] = summarize_behaviour(rows)
+    return out
+
+
+def analyze(ckpt: str | Path, samples: str | Path | None = None,
+            sources: Sequence[str] | None = None, root: str | Path = "data_cache",
+            behaviour: int = 100, jobs: int = 1, permutations: int = 200, seed: int = 0,
+            max_samples: int | None = None, entropy_seconds: float = 3.0) -> dict:
+    """The statistical view of a checkpoint and (optionally) a folder of its samples.
+
+    Args:
+        ckpt: Lightning checkpoint.
+        samples: folder written by ``robovae generate`` (valid robots only), or None.
+        sources: data sources of the training robots (default: the checkpoint's).
+        root: dataset cache folder.
+        behaviour: MuJoCo measures on at most this many robots per population (0: none).
+        jobs: worker processes for the MuJoCo measures (0: all cores).
+        permutations: permutations of the MMD test.
+        seed: seed of the MMD permutations and subsets.
+        max_samples: use at most this many sample robots (the first ones).
+        entropy_seconds: length of each random-actuation episode.
+
+    Returns:
+        A JSON-ready dict (:func:`to_json`): ``training`` and ``samples`` populations (robot
+        records, descriptor ``summary``, ``latent`` statistics, ``behaviour`` rows and
+        ``behaviour_summary``) and ``comparison`` (KL, MMD, coverage).
+    """
+    start = time.perf_counter()
+    model = load_model(ckpt)
+    train, what = training_graphs(model, ckpt, sources, root)
+    entropy_kw = {"seconds": entropy_seconds}
+    result: dict = {"checkpoint": str(ckpt), "feature_set": model.feature_set.name,
+                    "latent_dim": int(model.hparams.latent_dim)}
+    result["training"] = {"what": what, **_population(
+        model, train, [getattr(g, "source", None) for g in train], behaviour, jobs,
+        entropy_kw=entropy_kw)}
+    if samples is not None:
+        files = sample_files(samples)
+        if max_samples is not None:
+            files = files[:max_samples]
+        names = [n for n, _ in files]
+        graphs, errors = load_graphs([p for _, p in files], model.feature_set.name, names)
+        if not graphs:
+            raise RobovaeError(f"robovae: {samples}: no robot loaded "
+                               f"({len(errors)} files failed)")
+        pop = _population(model, graphs, [g.source for g in graphs], behaviour, jobs,
+                          match=len(train), entropy_kw=entropy_kw)
+        manifest = _manifest_counts(Path(samples))
+        result["samples"] = {"what": f"{len(graphs)} valid robots of {samples}"
+                             + (f" ({manifest['total']} generated)" if manifest else ""),
+                             "folder": str(samples), "load_errors": errors, **manifest, **pop}
+        result["comparison"] = compare(result["training"]["records"], pop["records"],
+                                       permutations=permutations, seed=seed)
+    result["seconds"] = time.perf_counter() - start
+    return result
+
+
+def _manifest_counts(folder: Path) -> dict:
+    from robovae.generate.pipeline import read_manifest
+
+    recs = read_manifest(folder)
+    if not recs:
+        return {}
+    return {"total": len(recs), "valid": sum(1 for r in recs.values() if r.get("valid"))}
+
+
+# ----------------------------------------------------------------------------------------------
+# output
+
+
+def to_json(obj):
+    """``obj`` with NaN/inf floats as ``None`` and numpy scalars as Python numbers."""
+    if isinstance(obj, dict):
+        return {str(k): to_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_json(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def save_json(result: dict, path: str | Path) -> Path:
+    """Write :func:`to_json` of ``result`` atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(to_json(result), indent=1))
+    os.replace(tmp, path)
+    return path
+
+
+def _f(v, fmt: str = "{:.3g}") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    return fmt.format(v)
+
+
+def _ms(s: dict) -> str:
+    return "-" if not s.get("n") else f"{_f(s['mean'])} ± {_f(s['std'])}"
+
+
+def format_report(result: dict) -> str:
+    """The tables :func:`analyze` results print as (plain text)."""
+    from robovae.cli import format_table
+
+    tr, sa, cmp_ = result["training"], result.get("samples"), result.get("comparison")
+    lines = [f"training: {tr['what']}"]
+    if sa:
+        lines.append(f"samples:  {sa['what']}")
+    rows = []
+    for n in DESCRIPTORS:
+        row = {"descriptor": n, "training": _ms(tr["summary"][n])}
+        if sa:
+            row["samples"] = _ms(sa["summary"][n])
+            row["KL(train||samples)"] = _f(cmp_["kl"][n], "{:.3f}")
+        rows.append(row)
+    cols = ["descriptor", "training"] + (["samples", "KL(train||samples)"] if sa else [])
+    lines += ["", format_table(rows, cols)]
+    if sa:
+        m, c = cmp_["mmd"], cmp_["coverage"]
+        lines += ["", f"KL summed over descriptors {_f(cmp_['kl_total'], '{:.3f}')} nats; "
+                  f"MMD² {_f(m['mmd2'], '{:.4f}')} (RBF, bandwidth {_f(m['bandwidth'])}, "
+                  f"permutation p = {_f(m['p_value'], '{:.3f}')}); coverage "
+                  f"{_f(c['coverage'], '{:.1%}')} of training robots have a sample within "
+                  f"{_f(c['threshold'])} (standardised descriptors), precision "
+                  f"{_f(c['precision'], '{:.1%}')} of samples near a training robot"]
+    pops = [("training", tr)] + ([("samples", sa)] if sa else [])
+    rows = []
+    for label, p in pops:
+        lat = p["latent"]
+        row = {"population": label, "robots": p["robots"],
+               "H_gauss": _f(lat.get("gaussian_entropy"), "{:.2f}"),
+               "H_knn": _f(lat.get("knn_entropy"), "{:.2f}"),
+               "H_knn@n_train": _f(lat.get("knn_entropy_matched", lat.get("knn_entropy")),
+                                   "{:.2f}"),
+               "eff_dim": _f(lat.get("effective_dim"), "{:.2f}"),
+               "variance": _f(lat.get("total_variance"), "{:.3g}"),
+               "median|mu|": _f(lat.get("median_norm"), "{:.2f}")}
+        rows.append(row)
+    prior = tr["latent"]["prior_entropy"]
+    lines += ["", f"latent space (encoded means, {result['latent_dim']} dims; the prior "
+              f"N(0, I) has entropy {prior:.2f} nats)",
+              format_table(rows, ["population", "robots", "H_gauss", "H_knn", "H_knn@n_train",
+                                  "eff_dim", "variance", "median|mu|"])]
+    rows = []
+    for label, p in pops:
+        b = p.get("behaviour_summary")
+        if not b:
+            continue
+        rows.append({"population": label, "measured": b["robots"],
+                     "root_H": _f(b["root_entropy"], "{:.2f}"),
+                     "root_H/size": _f(b["root_entropy_scaled"], "{:.2f}"),
+                     "joint_H": _f(b["joint_entropy"], "{:.2f}"),
+                     "displacement": _f(b["displacement"], "{:.2f}"),
+                     "stand": f"{b['standing']}/{b['floating']}", "errors": b["errors"]})
+    if rows:
+        lines += ["", "MuJoCo behaviour (random actuation: k-NN state entropy in nats; "
+                  "standing test: floating-base robots that stand)",
+                  format_table(rows, ["population", "measured", "root_H", "root_H/size",
+                                      "joint_H", "displacement", "stand", "errors"])]
+    if tr.get("behaviour"):
+        rows = [{"robot": r["name"], "category": r["category"],
+                 "root_H": _f(r.get("root_entropy"), "{:.2f}"),
+                 "root_H/size": _f(r.get("root_entropy_scaled"), "{:.2f}"),
+                 "joint_H": _f(r.get("joint_entropy"), "{:.2f}"),
+                 "displacement": _f(r.get("displacement"), "{:.2f}"),
+                 "stands": ("-" if not r.get("floating") else _f(r.get("stands"))),
+                 "fell_at": _f(r.get("fell_at"), "{:.2f}"),
+                 "max_tilt": _f(r.get("max_tilt"), "{:.0f}"),
+                 "note": (r.get("error", "")[:60] if "error" in r else
+                          "no free joint" if r.get("floating") is False else "")}
+                for r in tr["behaviour"]]
+        lines += ["", "training robots",
+                  format_table(rows, ["robot", "category", "root_H", "root_H/size", "joint_H",
+                                      "displacement", "stands", "fell_at", "max_tilt", "note"])]
+    lines.append(f"\n({result['seconds']:.1f} s)")
+    return "\n".join(lines)
+
+
+__all__ = ["analyze", "encode_means", "format_report", "save_json", "to_json",
+           "training_graphs"]
