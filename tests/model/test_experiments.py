@@ -1,0 +1,91 @@
+"""The experiment runner: a config trains through the Lightning CLI and its checkpoint loads;
+the report renders tables and loss curves from result files."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from robovae.evaluate import experiments as ex
+from robovae.model.checkpoint import load_model
+from tests.conftest import REPO
+
+
+@pytest.mark.parametrize("name", ["menagerie2", "menagerie4", "menagerie17"])
+def test_menagerie_configs_name_real_robots(name, menagerie_dir, cache_root):
+    from robovae.data.dataset import RobotDataset
+
+    cfg = yaml.safe_load((REPO / "configs" / f"{name}.yaml").read_text())
+    names = set(RobotDataset(cache_root, [f"dir:{menagerie_dir}"], progress=False).names)
+    data = cfg["data"]
+    for key in ("train_names", "val_names", "test_names"):
+        assert set(data[key]) <= names, key
+    assert "go2" in data["test_names"]
+    if name != "menagerie17":
+        assert "go2" not in data["train_names"]
+    else:
+        assert set(data["train_names"]) == set(ex.MENAGERIE17) == names
+
+
+def test_menagerie2_trains_scores_and_loads(tmp_path, menagerie_dir, cache_root):
+    spec = ex.RunSpec("menagerie2", str(REPO / "configs" / "menagerie2.yaml"), 0,
+                      tmp_path / "menagerie2" / "default" / "seed0",
+                      [f"--data.root={cache_root}", f'--data.sources=["dir:{menagerie_dir}"]',
+                       "--model.hidden_dim=16", "--model.latent_dim=4",
+                       "--trainer.check_val_every_n_epoch=3", "--metrics.every_n_epochs=3"],
+                      epochs=3)
+    result = ex.run_one(spec)
+    saved = json.loads((spec.out / "result.json").read_text())
+    assert saved["test"][0]["n_pred"] == result["test"][0]["n_pred"]
+    assert result["epochs"] == 3 and result["fit_s"] > 0
+    assert sorted(result["train_names"]) == ["a1", "go1"]
+    (go2,) = result["test"]
+    assert go2["name"] == "go2" and go2["n_true"] == 26
+    header = next(csv.reader((spec.out / "metrics.csv").open()))
+    assert "train/loss" in header and "val/RA" in header
+    model = load_model(spec.out / "checkpoints" / "last.ckpt")
+    assert model.hparams.feature_shift == 0.5
+    ex.loss_curve_png(spec.out / "metrics.csv", tmp_path / "curve.png", "smoke")
+    assert (tmp_path / "curve.png").stat().st_size > 1000
+
+
+def _fake(exp: str, seed: int, name: str, ra: float, variant: str = "default") -> dict:
+    t = {"name": name, "ra": ra, "ra_true": ra, "exact": ra == 1.0, "fre": 0.01, "n_true": 26,
+         "n_pred": 26, "n_correct": int(26 * ra)}
+    return {"experiment": exp, "variant": variant, "seed": seed, "epochs": 99, "fit_s": 1.0,
+            "load_fit_start": 0.5, "test": [t],
+            "summary": {"ra": ra, "ra_true": ra, "exact": float(ra == 1.0), "fre": 0.01,
+                        "count": 1}, "metrics_csv": "missing.csv"}
+
+
+def test_report_fills_the_marked_blocks(tmp_path, monkeypatch):
+    root = tmp_path / "runs"
+    results = [_fake("menagerie4", s, "go2", 1.0) for s in range(3)]
+    results += [_fake("loo", s, n, 1.0 if n.startswith("go") else 0.5)
+                for s in range(2) for n in ex.MENAGERIE17]
+    for i, r in enumerate(results):
+        (root / str(i)).mkdir(parents=True)
+        (root / str(i) / "result.json").write_text(json.dumps(r))
+    doc = tmp_path / "results.md"
+    doc.write_text("# x\n<!-- auto:experiments -->\nold\n<!-- /auto:experiments -->\nkeep\n"
+                   "<!-- auto:loo -->\n<!-- /auto:loo -->\n")
+    monkeypatch.setattr(ex, "DOCS", tmp_path)
+    ex.report(doc, root)
+    text = doc.read_text()
+    assert "old" not in text and "keep" in text
+    assert "| 4 robots (Go1, G1, A1, H1) -> Go2 |" in text and "100.0 ± 0.0 %" in text
+    assert "| go2 | 26 |" in text and "**mean over robots**" in text
+    mean = 100 * (2 + 15 * 0.5) / 17  # go1, go2 exact, the rest half
+    assert f"{mean:.1f} ± 0.0 %" in text
+
+
+def test_loo_specs_hold_out_one_robot():
+    specs = ex.loo_specs([0, 1], robots=["go2", "barkour v0"], root=Path("r"))
+    assert len(specs) == 4
+    train = json.loads(specs[2].overrides[0].split("=", 1)[1])
+    assert "barkour v0" not in train and len(train) == 16
+    assert specs[2].out == Path("r/loo/default/barkour_v0/seed0")
