@@ -1,0 +1,36 @@
+"""Latent interpolation: endpoints are the robots' own reconstructions, every step is written
+and validated."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from robovae.generate.interpolate import interpolate, latent_path
+
+
+def test_path_starts_and_ends_at_the_encoded_means(trained):
+    model, dm, _ = trained
+    a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
+    t, z = latent_path(model, a, b, steps=5)
+    mu, _ = model.encode(a)
+    assert t.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert torch.allclose(z[0], mu[0]) and not torch.allclose(z[0], z[-1])
+    assert torch.allclose(z[2], (z[0] + z[-1]) / 2, atol=1e-6)
+    with pytest.raises(ValueError, match="at least 2 steps"):
+        latent_path(model, a, b, steps=1)
+
+
+def test_every_step_is_written_and_validated(trained, tmp_path):
+    model, dm, _ = trained
+    a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
+    steps = interpolate(model, a, b, steps=3, out=tmp_path)
+    assert [s.t for s in steps] == [0.0, 0.5, 1.0]
+    assert [s.path.parent.name for s in steps] == ["step_00", "step_01", "step_02"]
+    assert all(s.path.is_file() and s.validation is not None for s in steps)
+    assert all(s.validation.valid or s.validation.reason for s in steps)
+    # endpoints: the greedy reconstructions of the two robots
+    assert steps[0].graph.num_nodes == model.reconstruct(a)[0].num_nodes
+    assert steps[-1].graph.num_nodes == model.reconstruct(b)[0].num_nodes
+    no_files = interpolate(model, a, b, steps=2)
+    assert no_files[0].path is None and no_files[0].validation is None
