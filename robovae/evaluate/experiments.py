@@ -426,6 +426,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--all":
         argv[0] = "all"
+    # Lightning CLI overrides after ``--`` (``run menagerie2 -- --model.latent_dim=64``)
+    passthrough = argv[argv.index("--") + 1:] if "--" in argv else []
+    argv = argv[:argv.index("--")] if "--" in argv else argv
     p = argparse.ArgumentParser(prog="python -m robovae.evaluate.experiments",
                                 description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -440,10 +443,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     common.add_argument("--root", default=str(RUNS), help="where runs are stored")
     r = sub.add_parser("run", parents=[common], help="one experiment of SPEC §6")
     r.add_argument("experiment", choices=list(EXPERIMENTS))
-    r.add_argument("overrides", nargs="*", help="extra Lightning CLI arguments")
+    r.add_argument("overrides", nargs="*", help="extra Lightning CLI arguments (after --)")
     lo = sub.add_parser("loo", parents=[common], help="leave-one-out over the 17 robots")
     lo.add_argument("--robots", default=",".join(MENAGERIE17))
-    lo.add_argument("overrides", nargs="*", help="extra Lightning CLI arguments")
+    lo.add_argument("overrides", nargs="*", help="extra Lightning CLI arguments (after --)")
     ab = sub.add_parser("ablation", parents=[common], help="the ablation variants")
     ab.add_argument("--only", default="", help="comma-separated variants")
     ab.add_argument("--loo", action="store_true", help="also the leave-one-out per variant")
@@ -452,6 +455,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     al = sub.add_parser("all", parents=[common], help="every experiment, LOO, ablation, report")
     al.add_argument("--skip-ablation", action="store_true")
     args = p.parse_args(argv)
+    if passthrough:
+        if not hasattr(args, "overrides"):
+            p.error(f"{args.cmd} takes no Lightning CLI overrides")
+        args.overrides = [*args.overrides, *passthrough]
     root = Path(args.root)
     if args.cmd == "report":
         report(root=root)
