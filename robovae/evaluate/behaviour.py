@@ -30,8 +30,10 @@ per hinge/slide joint holding the joint at its ``qpos0`` value, with stiffness
 rad under its full weight on a lever of its own size), capped at ``0.1 I / dt²`` (``I`` the
 joint's inertia at ``qpos0``, ``dt`` the time step: the explicit spring stays stable), critical
 damping (``dampratio = 1``) and, with ``torque_limits``, the torque limit of the robot's own
-actuator on that joint (``|gear| · max|ctrlrange|`` or its ``forcerange``; unlimited when the
-joint has none). The integrator is ``implicitfast`` so the damping is implicit. After
+actuator on that joint (``|gear · gain| · max|ctrlrange|`` for a motor-like actuator whose
+force is ``gain · ctrl``, and ``|gear| · max|forcerange|``; unlimited when the joint has
+neither, e.g. a position servo without ``forcerange``). The integrator is ``implicitfast`` so
+the damping is implicit. After
 ``seconds`` (2 s) on the floor the robot **stands** when, at every sample, its base stayed
 **up** — base height above the floor at least ``min_height`` (0.6) of its height above its own
 lowest point at ``qpos0`` — and **upright** — the base's up axis (the local direction that
@@ -60,6 +62,9 @@ _HFIELD = int(mujoco.mjtGeom.mjGEOM_HFIELD)
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _MOVING = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
+_GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
+_BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
+_DYN_INTEGRATOR = int(mujoco.mjtDyn.mjDYN_INTEGRATOR)
 _BAD = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
         mujoco.mjtWarning.mjWARN_BADQVEL)
 
@@ -232,10 +237,17 @@ def _torque_limits(model: mujoco.MjModel) -> dict[int, float]:
         j = int(model.actuator_trnid[a, 0])
         gear = abs(float(model.actuator_gear[a, 0]))
         limit = math.inf
-        if model.actuator_ctrllimited[a]:
-            limit = gear * float(np.abs(model.actuator_ctrlrange[a]).max())
-        if model.actuator_forcelimited[a]:
-            limit = min(limit, float(np.abs(model.actuator_forcerange[a]).max()))
+        # force = gain · (ctrl or act) only for a fixed gain without bias (motors); a servo's
+        # force (kp · (ctrl - q) ...) is not bounded by its control range
+        if model.actuator_gaintype[a] == _GAIN_FIXED and model.actuator_biastype[a] == _BIAS_NONE:
+            gain = gear * abs(float(model.actuator_gainprm[a, 0]))
+            if model.actuator_dyntype[a] == _DYN_INTEGRATOR:
+                if model.actuator_actlimited[a]:
+                    limit = gain * float(np.abs(model.actuator_actrange[a]).max())
+            elif model.actuator_ctrllimited[a]:
+                limit = gain * float(np.abs(model.actuator_ctrlrange[a]).max())
+        if model.actuator_forcelimited[a]:  # forcerange clamps the force before the gear
+            limit = min(limit, gear * float(np.abs(model.actuator_forcerange[a]).max()))
         out[j] = out.get(j, 0.0) + limit
     return out
 

@@ -1,0 +1,122 @@
+"""Tests for ``robovae analyze`` (robovae.evaluate.analyze) on the small zoo checkpoint."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from robovae.cli import main
+from robovae.data.procedural import procedural_spec
+from robovae.evaluate.analyze import analyze, encode_means, format_report, to_json, training_graphs
+from robovae.evaluate.population import DESCRIPTORS
+
+
+def _strict(text: str):
+    """``json.loads`` that refuses NaN/Infinity."""
+    def bad(c):
+        raise ValueError(f"non-standard JSON constant {c}")
+    return json.loads(text, parse_constant=bad)
+
+
+@pytest.fixture(scope="module")
+def proc_samples(tmp_path_factory):
+    """A folder laid out like ``robovae generate --out`` with 6 procedural robots."""
+    out = tmp_path_factory.mktemp("samples")
+    with open(out / "manifest.jsonl", "w") as f:
+        for i in range(6):
+            d = out / f"robot_{i:06d}"
+            d.mkdir()
+            (d / "robot.xml").write_text(procedural_spec(i, "quadruped").to_xml())
+            f.write(json.dumps({"index": i, "valid": i != 5,
+                                "path": f"robot_{i:06d}/robot.xml"}) + "\n")
+    return out
+
+
+def test_training_graphs_are_the_checkpoint_training_robots(trained) -> None:
+    model, dm, ckpt = trained
+    graphs, what = training_graphs(model, ckpt, root=ckpt.parent / "cache")
+    names = {g.name for g in graphs}
+    assert names == {r["name"] for r in model.training_robots}
+    assert "gym_hopper" not in names and "gym_half_cheetah" not in names  # held out
+    assert what.startswith(f"{len(graphs)} training robots of zoo")
+    mu = encode_means(model, graphs[:3])
+    assert mu.shape == (3, 8) and np.isfinite(mu).all()
+    assert encode_means(model, []).shape == (0, 8)
+
+
+def test_cli_analyze_prints_the_report_and_writes_json(trained, tmp_path, capsys) -> None:
+    _, _, ckpt = trained
+    out = tmp_path / "analysis.json"
+    rc = main(["analyze", "--ckpt", str(ckpt), "--behaviour", "2", "--permutations", "20",
+               "--root", str(ckpt.parent / "cache"), "--jobs", "1", "--entropy-seconds", "0.5",
+               "--json", str(out)])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    assert "Traceback" not in captured.out + captured.err
+    text = captured.out
+    assert text.startswith("training: ")
+    for word in ("descriptor", *DESCRIPTORS, "latent space", "H_gauss", "eff_dim",
+                 "MuJoCo behaviour", "training robots", f"json: {out}"):
+        assert word in text, word
+    res = _strict(out.read_text())
+    tr = res["training"]
+    assert res["latent_dim"] == 8 and res["feature_set"] == "paper34"
+    assert tr["robots"] == len(tr["records"]) > 10
+    assert len(tr["behaviour"]) == 2
+    assert tr["behaviour_summary"]["robots"] == 2
+    assert "samples" not in res and "comparison" not in res
+    lat = tr["latent"]
+    assert lat["n"] == tr["robots"] and lat["dim"] == 8 and len(lat["eigenvalues"]) == 8
+    assert 1.0 <= lat["effective_dim"] <= 8.0
+    ant = next(r for r in tr["records"] if r["name"] == "gym_ant")
+    assert (ant["links"], ant["joints"], ant["limbs"], ant["dof"]) == (13, 9, 4, 14)
+    assert ant["category"] == "quadruped"
+
+
+def test_analyze_with_samples(trained, proc_samples) -> None:
+    _, _, ckpt = trained
+    res = analyze(ckpt, samples=proc_samples, root=ckpt.parent / "cache", behaviour=1,
+                  permutations=20, entropy_seconds=0.5)
+    sa, cmp_ = res["samples"], res["comparison"]
+    assert sa["robots"] == 5 and sa["total"] == 6 and sa["valid"] == 5  # invalid one left out
+    assert sa["load_errors"] == []
+    assert sa["what"] == f"5 valid robots of {proc_samples} (6 generated)"
+    assert all(r["limbs"] == 4 for r in sa["records"])
+    # unnamed robots are categorised by structure (robot_category's documented rule): four
+    # limbs of at most 3 joints make a quadruped, longer legs count as a humanoid
+    assert [r["category"] for r in sa["records"]] == [
+        "quadruped" if (r["joints"] - 1) / 4 <= 3 else "humanoid" for r in sa["records"]]
+    assert "knn_entropy_matched" not in sa["latent"]  # 5 samples < training robots
+    assert set(cmp_["kl"]) == set(DESCRIPTORS)
+    assert cmp_["kl"]["limbs"] > 0.1  # zoo limbs 0..12 vs always 4
+    assert 0.0 <= cmp_["coverage"]["coverage"] <= 1.0
+    assert cmp_["mmd"]["mmd2"] > 0
+    assert len(sa["behaviour"]) == 1 and sa["behaviour"][0]["name"] == "robot_000000"
+    text = format_report(res)
+    assert "samples:  5 valid robots" in text and "KL(train||samples)" in text
+    assert "MMD²" in text and "coverage" in text
+    _strict(json.dumps(to_json(res)))
+    capped = analyze(ckpt, samples=proc_samples, root=ckpt.parent / "cache", behaviour=0,
+                     permutations=0, max_samples=2)
+    assert capped["samples"]["robots"] == 2 and "behaviour" not in capped["samples"]
+
+
+def test_analyze_of_a_folder_without_robots_is_a_one_line_error(trained, tmp_path,
+                                                                capsys) -> None:
+    _, _, ckpt = trained
+    (tmp_path / "robot_000000").mkdir()
+    (tmp_path / "robot_000000" / "robot.xml").write_text("<mujoco><worldbody><body></mujoco>")
+    rc = main(["analyze", "--ckpt", str(ckpt), "--samples", str(tmp_path), "--behaviour", "0",
+               "--root", str(ckpt.parent / "cache")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith("robovae: ") and "no robot loaded" in err
+    assert "Traceback" not in err
+
+
+def test_to_json() -> None:
+    obj = {"a": math.nan, "b": [np.float32(1.5), np.int64(3), np.bool_(True), math.inf],
+           1: (np.float64("nan"),)}
+    assert to_json(obj) == {"a": None, "b": [1.5, 3, True, None], "1": [None]}

@@ -1,0 +1,159 @@
+"""Tests for the MuJoCo behaviour measures (robovae.evaluate.behaviour) on real robots."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import pytest
+
+from robovae.data.procedural import ProceduralConfig, procedural_spec
+from robovae.data.zoo import zoo_files
+from robovae.evaluate.behaviour import (
+    behaviour,
+    behaviour_many,
+    prepare,
+    standing_test,
+    state_entropy,
+    summarize_behaviour,
+)
+
+ZOO = dict(zoo_files()[0])
+#: motors a thousand times too weak to move the robot or hold it up
+WEAK = ProceduralConfig(gear=(0.001, 0.002))
+FAST = {"seconds": 1.0, "rollouts": 4}
+
+
+def quadruped(weak: bool = False) -> mujoco.MjSpec:
+    return procedural_spec(2, "quadruped", WEAK if weak else None)
+
+
+def test_prepare_adds_a_floor_under_a_robot_without_one() -> None:
+    spec, scene = prepare(quadruped())
+    assert scene.free
+    assert any(g.name == "robovae_floor" for g in spec.worldbody.geoms)
+    # the procedural robot starts `clearance` (0.02 m) above z = 0: the floor goes under it
+    assert scene.floor_z == pytest.approx(0.02, abs=1e-6)
+    spec, scene = prepare(ZOO["gym_ant"])  # has its own floor at z = 0
+    assert not any(g.name == "robovae_floor" for g in spec.worldbody.geoms)
+    assert scene.floor_z == 0.0 and scene.free
+    assert not prepare(ZOO["gym_half_cheetah"])[1].free  # planar: slide/hinge root
+
+
+def test_state_entropy_of_a_robot_that_cannot_move_is_lower() -> None:
+    strong = state_entropy(quadruped(), **FAST)
+    weak = state_entropy(quadruped(weak=True), **FAST)
+    for r in (strong, weak):
+        assert r["actuators"] == r["joints"] > 0
+        assert r["points"] == 4 * 20 and r["unstable"] == 0 and r["root_dims"] == 3
+        assert r["seconds"] == pytest.approx(1.0)
+    assert weak["root_entropy"] < strong["root_entropy"] - 5
+    assert weak["joint_entropy"] < strong["joint_entropy"] - 2
+    assert weak["displacement"] < strong["displacement"]
+    assert strong["root_entropy_scaled"] == pytest.approx(
+        strong["root_entropy"] - 3 * math.log(strong["size"]))
+
+
+def test_state_entropy_is_deterministic_per_seed() -> None:
+    a = state_entropy(ZOO["gym_ant"], seconds=0.5, rollouts=2, seed=0)
+    b = state_entropy(ZOO["gym_ant"], seconds=0.5, rollouts=2, seed=0)
+    c = state_entropy(ZOO["gym_ant"], seconds=0.5, rollouts=2, seed=1)
+    assert a == b
+    assert a["root_entropy"] != c["root_entropy"]
+
+
+def test_state_entropy_of_a_planar_robot_drops_fixed_coordinates() -> None:
+    r = state_entropy(ZOO["gym_half_cheetah"], **FAST)
+    assert r["root_dims"] == 2  # the root moves in x and z, never in y
+    assert math.isfinite(r["root_entropy"])
+
+
+def test_state_entropy_without_actuators_is_nan() -> None:
+    r = state_entropy(procedural_spec(0, "quadruped", ProceduralConfig(actuators=False)), **FAST)
+    assert r["actuators"] == 0 and r["points"] == 0
+    assert math.isnan(r["root_entropy"]) and math.isnan(r["joint_entropy"])
+
+
+def test_max_steps_shortens_episodes() -> None:
+    r = state_entropy(ZOO["gym_ant"], seconds=3.0, rollouts=2, max_steps=100)  # dt 0.01
+    assert r["seconds"] == pytest.approx(0.5)
+    assert r["points"] == 2 * 10
+
+
+def test_quadruped_stands_and_weak_quadruped_falls() -> None:
+    st = standing_test(quadruped())
+    assert st["floating"] and st["stands"] and st["up"] and st["upright"]
+    assert st["fell_at"] is None and not st["unstable"]
+    assert st["height_ratio"] >= 0.6 and st["max_tilt"] <= 30
+    assert st["limited_joints"] == 16 and st["stand_seconds"] == pytest.approx(2.0, abs=0.01)
+    weak = standing_test(quadruped(weak=True))
+    assert weak["floating"] and weak["stands"] is False
+    assert weak["fell_at"] is not None and 0 < weak["fell_at"] <= 2.0
+    assert weak["height_ratio"] < 0.6  # the legs fold under the torso
+    # without the robot's own torque limits the same weak robot is held up
+    held = standing_test(quadruped(weak=True), torque_limits=False)
+    assert held["stands"] and held["limited_joints"] == 0
+
+
+def test_dm_control_quadruped_stands_and_gym_humanoid_falls() -> None:
+    assert standing_test(ZOO["dmc_quadruped"])["stands"]
+    hum = standing_test(ZOO["gym_humanoid"])  # a stiff statue on small feet topples
+    assert hum["stands"] is False and hum["upright"] is False and hum["max_tilt"] > 60
+
+
+def test_fixed_base_robot_is_not_tested() -> None:
+    st = standing_test(ZOO["gym_half_cheetah"])
+    assert st["floating"] is False
+    assert all(v is None for k, v in st.items() if k != "floating")
+
+
+def test_behaviour_rows_and_summary(tmp_path) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><worldbody><body></mujoco>")
+    kw = {"seconds": 0.5, "rollouts": 2}
+    rows = behaviour_many([ZOO["gym_ant"], ZOO["gym_half_cheetah"], bad], jobs=1, entropy=kw)
+    assert [r["robot"] for r in rows] == [str(ZOO["gym_ant"]), str(ZOO["gym_half_cheetah"]),
+                                         str(bad)]
+    ant, cheetah, broken = rows
+    assert "error" not in ant and ant["floating"] and ant["stands"]
+    assert "error" not in cheetah and cheetah["floating"] is False
+    assert "error" in broken and "\n" not in broken["error"]
+    s = summarize_behaviour(rows)
+    assert s["robots"] == 3 and s["errors"] == 1
+    assert s["floating"] == 1 and s["standing"] == 1 and s["standing_rate"] == 1.0
+    assert s["root_entropy"] == pytest.approx(
+        (ant["root_entropy"] + cheetah["root_entropy"]) / 2)
+    one = behaviour(quadruped(weak=True), entropy=kw)
+    assert one["robot"] == "proc_quadruped_00002" and one["stands"] is False
+    assert math.isnan(summarize_behaviour([])["standing_rate"])
+
+
+def test_torque_limits_by_hand() -> None:
+    """Joint torque an actuator can give: gear · gain · ctrl for a motor, gear · forcerange;
+    a position servo is not limited by its control range."""
+    from robovae.evaluate.behaviour import _torque_limits
+
+    xml = """<mujoco><worldbody><body>
+      <joint name="j0" type="hinge"/><joint name="j1" type="hinge" axis="1 0 0"/>
+      <joint name="j2" type="hinge" axis="0 1 0"/><joint name="j3" type="slide"/>
+      <joint name="j4" type="slide" axis="1 0 0"/>
+      <geom size="0.1"/></body></worldbody>
+    <actuator>
+      <motor joint="j0" gear="2" ctrlrange="-3 3"/>
+      <general joint="j1" gainprm="5" gear="2" ctrlrange="-1 3"/>
+      <position joint="j2" kp="100" ctrlrange="-1 1"/>
+      <position joint="j3" kp="100" gear="3" forcerange="-2 2"/>
+      <motor joint="j4" gear="10" ctrlrange="-1 1" forcerange="-4 4"/>
+    </actuator></mujoco>"""
+    lim = _torque_limits(mujoco.MjModel.from_xml_string(xml))
+    assert lim[0] == pytest.approx(6.0)
+    assert lim[1] == pytest.approx(30.0)
+    assert lim[2] == math.inf
+    assert lim[3] == pytest.approx(6.0)
+    assert lim[4] == pytest.approx(min(10.0, 40.0))
+    # the gymnasium humanoid's motors (gain 1): gear (25 ... 300) · ctrlrange ±0.4
+    model = mujoco.MjModel.from_xml_path(str(ZOO["gym_humanoid"]))
+    assert _torque_limits(model) == pytest.approx(
+        {int(model.actuator_trnid[a, 0]): 0.4 * model.actuator_gear[a, 0]
+         for a in range(model.nu)})
+    assert _torque_limits(model)[1] == pytest.approx(40.0)  # abdomen_y: gear 100
