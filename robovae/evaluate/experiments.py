@@ -370,13 +370,17 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
 
 def ablation_table(results: list[dict]) -> str:
     lines = ["| variant | change | 2 robots -> Go2: RA / RA_true / exact | "
-             "4 robots -> Go2: RA / RA_true / exact | LOO mean RA / exact |", "|---" * 5 + "|"]
+             "4 robots -> Go2: RA / RA_true / exact | 17 robots: mean RA / FRE | "
+             "LOO mean RA / exact |", "|---" * 6 + "|"]
     for v, (desc, _) in ABLATIONS.items():
         cells = []
         for exp in ("menagerie2", "menagerie4"):
             s = [r["summary"] for r in _group(results, experiment=exp, variant=v)]
             cells.append(" / ".join([_pct([x["ra"] for x in s]), _pct([x["ra_true"] for x in s]),
                                      _pct([x["exact"] for x in s])]) if s else "n/a")
+        s = [r["summary"] for r in _group(results, experiment="menagerie17", variant=v)]
+        cells.append(f"{_pct([x['ra'] for x in s])} / {_ms([x['fre'] for x in s], '{:.2g}')}"
+                     if s else "n/a")
         rs = _group(results, experiment="loo", variant=v)
         seeds = sorted({r["seed"] for r in rs})
         per_seed = [[r["test"][0] for r in rs if r["seed"] == s] for s in seeds]
