@@ -116,6 +116,17 @@ def _lightning_rate(menagerie: str, root: Path, epochs: int) -> float:
     return (epochs - 10) / (time.perf_counter() - clock.start)
 
 
+def _machine_gflops(n: int = 256, reps: int = 200) -> float:
+    """Reference speed of this machine: float32 ``n x n`` matmul GFLOP/s on the torch threads."""
+    a, b = torch.randn(n, n), torch.randn(n, n)
+    for _ in range(10):
+        a @ b
+    t = time.perf_counter()
+    for _ in range(reps):
+        a @ b
+    return 2 * n ** 3 * reps / (time.perf_counter() - t) / 1e9
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--menagerie", default="../shared/menagerie")
@@ -173,7 +184,8 @@ def main() -> None:
         print(f"Trainer.fit, 17 Menagerie robots, batch 17: {rate:.1f} epochs/s "
               f"({1000 / rate:.1f} ms/epoch; 1500 epochs ~ {1500 / rate:.0f} s + start-up)")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"threads: {torch.get_num_threads()}, hidden {args.hidden}, peak RSS {peak:.0f} MiB")
+    print(f"threads: {torch.get_num_threads()}, hidden {args.hidden}, peak RSS {peak:.0f} MiB, "
+          f"machine reference {_machine_gflops():.1f} GFLOP/s (256x256 float32 matmul)")
 
 
 if __name__ == "__main__":

@@ -95,6 +95,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``robovae`` argument parser: one sub-command per pipeline step."""
     p = argparse.ArgumentParser(prog="robovae", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)

@@ -22,9 +22,11 @@ class RobotDataModule(L.LightningDataModule):
         feature_set: ``paper34`` or ``full`` (synthetic sources force ``random<d>``).
         root: cache folder of the processed dataset.
         train_names: robots to train on (default: all not in val/test).
-        val_names, test_names: robots held out by name. When both are empty the split is by
+        val_names: robots held out by name. When both are empty the split is by
             fraction (``val_fraction``/``test_fraction``, seeded shuffle).
-        val_fraction, test_fraction: fractions used when no names are given.
+        test_names: see ``val_names``.
+        val_fraction: fractions used when no names are given.
+        test_fraction: see ``val_fraction``.
         val_is_train: validate on the training robots (for overfitting experiments and tiny
             sets where a held-out robot is the test robot).
         batch_size: graphs per batch.
@@ -32,7 +34,8 @@ class RobotDataModule(L.LightningDataModule):
         num_workers: DataLoader workers.
         predict_samples: when > 0, ``predict`` decodes this many prior samples (robot indices
             ``0 … n-1``, see :mod:`robovae.generate.predict`) instead of the test robots.
-        predict_seed, predict_temperature: seed and prior temperature of those samples.
+        predict_seed: seed and prior temperature of those samples.
+        predict_temperature: see ``predict_seed``.
     """
 
     def __init__(
@@ -99,11 +102,13 @@ class RobotDataModule(L.LightningDataModule):
                 and trainer.state.fn == "predict")
 
     def prepare_data(self) -> None:
+        """Build (or load from the cache) the dataset once, on rank 0."""
         if self._predicts_latents():
             return
         RobotDataset(self.hparams.root, self.hparams.sources, self.hparams.feature_set)
 
     def setup(self, stage: str | None = None) -> None:
+        """Load the dataset, split it into train/val/test and fit the normaliser on train."""
         hp = self.hparams
         if stage == "predict" and hp.predict_samples > 0:
             return  # latents only: the model brings its normaliser from the checkpoint
@@ -121,19 +126,23 @@ class RobotDataModule(L.LightningDataModule):
         self.normalizer = Normalizer(self.dataset.feature_set).fit(x, t)
 
     def train_dataloader(self) -> DataLoader:
+        """Shuffled PyG loader over the training robots."""
         return DataLoader(self.train_set, batch_size=self.hparams.batch_size, shuffle=True,
                           num_workers=self.hparams.num_workers)
 
     def val_dataloader(self) -> DataLoader:
+        """Loader over the validation robots (the training robots when ``val_is_train``)."""
         return DataLoader(self.val_set, batch_size=self.hparams.batch_size,
                           num_workers=self.hparams.num_workers)
 
     def test_dataloader(self) -> DataLoader:
+        """Loader over the test robots."""
         return DataLoader(self.test_set, batch_size=self.hparams.batch_size,
                           num_workers=self.hparams.num_workers)
 
 
     def predict_dataloader(self) -> DataLoader | TorchDataLoader:
+        """Loader over the latent requests of ``robovae predict``."""
         hp = self.hparams
         if hp.predict_samples <= 0:
             return self.test_dataloader()

@@ -133,6 +133,7 @@ class RobotDataset(InMemoryDataset):
         return [f"robots_{self._key}.pt", f"robots_{self._key}.json"]
 
     def download(self) -> None:  # sources are resolved in __init__
+        """Nothing to download: sources are local files, packages or generators."""
         pass
 
     # --- build -----------------------------------------------------------------------------
@@ -159,6 +160,8 @@ class RobotDataset(InMemoryDataset):
         return [_from_fields(d) for d, _ in results if d is not None], [e for _, e in results if e]
 
     def process(self) -> None:
+        """Parse every source into robot graphs; a bad file gives a one-line error and is
+        skipped."""
         graphs, skipped = self._load_files()
         graphs += self._resolved.graphs
         kept, duplicates, seen, names = [], [], {}, set()

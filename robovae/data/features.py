@@ -122,6 +122,7 @@ class FeatureSet:
         return self._slices[key]
 
     def features_of(self, node_type: str) -> list[Feature]:
+        """The features of node type ``node_type`` (``link``/``joint``/...), in column order."""
         return [f for f in self.features if f.node_type == node_type]
 
     def type_mask(self) -> Tensor:
@@ -258,6 +259,22 @@ def get_feature_set(name: str) -> FeatureSet:
 FEATURE_SETS = ("paper34", "full")
 
 
+def feature_table(name: str) -> str:
+    """Markdown reference of a feature set: a heading and one row per feature (key, width,
+    range, transform, unit, MuJoCo source, description). ``docs/data.md`` holds the tables of
+    :data:`FEATURE_SETS` as printed by ``python -m robovae.data.features``; a test keeps them
+    equal to the registry."""
+    fs = get_feature_set(name)
+    lines = [f"### `{fs.name}` ({fs.dim} columns; node types: {', '.join(fs.node_types)})", "",
+             "| key | width | range | transform | unit | MuJoCo source | description |",
+             "|---|---|---|---|---|---|---|"]
+    for f in fs.features:
+        cells = [f"`{f.key}`", str(f.width), f"[{f.low:g}, {f.high:g}]", f.transform, f.unit,
+                 f"`{f.source}`" if f.source else "", f.doc]
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(lines)
+
+
 # --- normalisation ---------------------------------------------------------------------------
 
 
@@ -344,4 +361,9 @@ class Normalizer(nn.Module):
         return torch.where(mask, self._t_inv(y * self.std + self.mean), torch.zeros_like(y))
 
     def extra_repr(self) -> str:
+        """Feature set name and whether the statistics were fitted."""
         return f"feature_set={self.feature_set.name}, fitted={bool(self.fitted)}"
+
+
+if __name__ == "__main__":
+    print("\n\n".join(feature_table(n) for n in FEATURE_SETS))

@@ -57,7 +57,7 @@ def tree_data(
     feature_set: str | FeatureSet,
     name: str = "",
     source: str = "",
-    **extra,
+    **extra: object,
 ) -> RobotData:
     """Build a robot graph from a pre-order parent vector.
 
@@ -66,8 +66,9 @@ def tree_data(
         node_type: node type id per node.
         x: ``[N, d]`` physical feature values.
         feature_set: the registry set the columns follow.
-        name, source: robot name and where it came from.
-        extra: further attributes to store (e.g. ``warnings``).
+        name: robot name and where it came from.
+        source: see ``name``.
+        **extra: further attributes to store (e.g. ``warnings``).
 
     Raises:
         ValueError: when ``parent`` is not a pre-order tree or shapes disagree.

@@ -1,0 +1,1 @@
+"""Evaluate: RA / FRE metrics, sample and population statistics, rendering, experiments."""

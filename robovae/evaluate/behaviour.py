@@ -157,7 +157,8 @@ def state_entropy(robot: Robot, seconds: float = 3.0, rollouts: int = 8, hold: f
 
     Args:
         robot: a robot file or ``mujoco.MjSpec``.
-        seconds, rollouts: length and number of episodes.
+        seconds: length and number of episodes.
+        rollouts: see ``seconds``.
         hold: seconds each random control is held.
         sample_dt: seconds between recorded states.
         k: neighbours of the entropy estimator.

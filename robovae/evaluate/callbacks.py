@@ -60,6 +60,8 @@ class ReconstructionMetrics(L.Callback):
                     pl_module.log(f"{stage}/FRE/{r.name}", r.fre, batch_size=1)
 
     def on_validation_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
+        """Every ``every_n_epochs`` (and at the last epoch): decode the validation robots and
+        log ``val/RA``, ``val/RA_true``, ``val/exact``, ``val/FRE``."""
         if trainer.sanity_checking:
             return
         epoch = trainer.current_epoch + 1
@@ -69,4 +71,5 @@ class ReconstructionMetrics(L.Callback):
         self._log(pl_module, "val", score_split(pl_module, trainer.datamodule.val_set))
 
     def on_test_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
+        """Decode the test robots and log the ``test/*`` metrics (also per robot)."""
         self._log(pl_module, "test", score_split(pl_module, trainer.datamodule.test_set))

@@ -101,9 +101,11 @@ class FitTimer(L.Callback):
         self.load_start = self.load_end = math.nan
 
     def on_fit_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
+        """Start the wall clock."""
         self.start, self.load_start = time.perf_counter(), _loadavg()
 
     def on_fit_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
+        """Stop the wall clock (seconds in ``seconds``)."""
         self.end, self.load_end = time.perf_counter(), _loadavg()
 
 
@@ -306,6 +308,8 @@ def _group(results: list[dict], **match) -> list[dict]:
 
 
 def experiments_table(results: list[dict], variant: str = "default") -> str:
+    """Markdown table: one row per experiment, the paper's number beside ours (mean ±
+    spread over seeds)."""
     lines = ["| experiment | paper | RA | RA_true | exact | FRE | seeds | epochs | fit wall (s) "
              "| load | command |", "|---" * 10 + "|"]
     for name, e in EXPERIMENTS.items():
@@ -325,6 +329,7 @@ def experiments_table(results: list[dict], variant: str = "default") -> str:
 
 
 def per_robot_table(results: list[dict], experiment: str, variant: str = "default") -> str:
+    """Markdown table: RA / RA_true / exact / FRE of every test robot of one experiment."""
     rs = _group(results, experiment=experiment, variant=variant)
     names: dict[str, list[dict]] = {}
     for r in rs:
@@ -340,6 +345,7 @@ def per_robot_table(results: list[dict], experiment: str, variant: str = "defaul
 
 
 def loo_table(results: list[dict], variant: str = "default") -> str:
+    """Markdown table of the leave-one-out runs: one row per held-out robot."""
     rs = _group(results, experiment="loo", variant=variant)
     by: dict[str, list[dict]] = {}
     for r in rs:
@@ -369,6 +375,8 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
 
 
 def ablation_table(results: list[dict]) -> str:
+    """Markdown table: one row per ablation variant: unseen Go2 from 2 and 4 robots, the
+    17-robot fit and leave-one-out."""
     lines = ["| variant | change | 2 robots -> Go2: RA / RA_true / exact | "
              "4 robots -> Go2: RA / RA_true / exact | 17 robots: mean RA / FRE | "
              "LOO mean RA / exact |", "|---" * 6 + "|"]
@@ -427,6 +435,7 @@ def _seeds(s: str) -> list[int]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m robovae.evaluate.experiments {run,loo,ablation,report}``: exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--all":
         argv[0] = "all"

@@ -1,0 +1,1 @@
+"""Generate: graph → MJCF writer (MjSpec), physical rules, MuJoCo validation, sampling."""

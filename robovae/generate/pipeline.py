@@ -136,11 +136,13 @@ class GenerationReport:
     metrics: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
+        """JSON-ready dictionary of the report."""
         return {"out": str(self.out), "total": self.total, "new": self.new,
                 "seconds": self.seconds, "reasons": self.reasons, "rules": self.rules,
                 "metrics": self.metrics}
 
     def format(self) -> str:
+        """The report as printed by ``robovae generate``."""
         m = self.metrics
         lines = [f"{self.total} robots in {self.out} ({self.new} new, {self.seconds:.1f} s)"]
         if m:

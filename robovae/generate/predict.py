@@ -74,6 +74,7 @@ class RobotWriter(BasePredictionWriter):
         self._pool: Executor | None = None
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
+        """Create the output folder and read the manifest of a run being resumed."""
         if stage != "predict":
             return
         self.out.mkdir(parents=True, exist_ok=True)
@@ -111,6 +112,7 @@ class RobotWriter(BasePredictionWriter):
     def write_on_batch_end(self, trainer: L.Trainer, pl_module: L.LightningModule,
                            prediction: Any, batch_indices: Sequence[int] | None, batch: Any,
                            batch_idx: int, dataloader_idx: int = 0) -> None:
+        """Write, validate and record the robots decoded in one predict batch."""
         if not isinstance(prediction, dict) or "graphs" not in prediction:
             raise TypeError("robovae: RobotWriter needs latent batches (set "
                             "data.predict_samples > 0)")
@@ -126,11 +128,13 @@ class RobotWriter(BasePredictionWriter):
             append_records(manifest, records)
 
     def teardown(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
+        """Close the validation worker pool."""
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
 
     def on_predict_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
+        """On rank 0, summarise the manifests of all ranks and print the sample report."""
         trainer.strategy.barrier()
         if trainer.is_global_zero:
             dm = trainer.datamodule

@@ -69,6 +69,7 @@ class Validation:
     energy_scale: float = 0.0
 
     def to_dict(self) -> dict:
+        """JSON-ready dictionary of the validation result."""
         return asdict(self)
 
 

@@ -566,8 +566,13 @@ def write_robot(
     checked to load with MuJoCo before anything is written.
 
     Args:
-        data, feature_set, name, rules, actuators, clearance, self_collision: as in
-            :func:`graph_to_spec`.
+        data: the robot graph (as in :func:`graph_to_spec`).
+        feature_set: as in :func:`graph_to_spec`.
+        name: as in :func:`graph_to_spec`.
+        rules: as in :func:`graph_to_spec`.
+        actuators: as in :func:`graph_to_spec`.
+        clearance: as in :func:`graph_to_spec`.
+        self_collision: as in :func:`graph_to_spec`.
         out_dir: folder to write into (created if missing).
         scene: also write ``scene.xml`` (floor, light, ``<include file="robot.xml"/>``).
 

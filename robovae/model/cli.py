@@ -39,6 +39,8 @@ class RoboVAECLI(LightningCLI):
     """LightningCLI with robovae's linked arguments and always-on callbacks."""
 
     def add_arguments_to_parser(self, parser: LightningArgumentParser) -> None:
+        """Link ``data.feature_set`` to the model and add the ``checkpoint`` and ``metrics``
+        (RA/FRE callback) groups."""
         parser.link_arguments("data.feature_set", "model.feature_set")
         parser.add_lightning_class_args(ModelCheckpoint, "checkpoint")
         # save_top_k=1 without a monitor keeps the newest epoch's checkpoint; Lightning 2.6 writes
@@ -57,6 +59,7 @@ class RoboVAECLI(LightningCLI):
             read_checkpoint(Path(ckpt))  # one-line RobovaeError; builds no object
 
     def _weights_only(self) -> None:
+        """``before_fit/validate/test/predict``: load checkpoints weights-only unless asked."""
         kwargs = self.config_init[self.subcommand]
         if "weights_only" in kwargs and kwargs["weights_only"] is None:
             kwargs["weights_only"] = True

@@ -49,20 +49,24 @@ class RoboVAE(L.LightningModule):
         hidden_dim: message / hidden size of encoder and decoder.
         latent_dim: size of z.
         beta: final weight of the KL term (eq. 13).
-        beta_start, beta_warmup_epochs: linear β annealing from ``beta_start``.
-        lr, weight_decay: AdamW settings.
+        beta_start: β at epoch 0 of the linear warm-up.
+        beta_warmup_epochs: epochs of the linear warm-up from ``beta_start`` to ``beta``.
+        lr: AdamW learning rate.
+        weight_decay: AdamW weight decay.
         lr_schedule: ``cosine`` (to ``lr * lr_min_factor`` over ``max_epochs``) or ``constant``.
         lr_min_factor: final learning rate as a fraction of ``lr`` for the cosine schedule.
-        max_nodes, max_depth: limits of autoregressive decoding.
+        max_nodes: node limit of autoregressive decoding.
+        max_depth: depth limit of autoregressive decoding.
         topo_context: feed depth and child count to the expansion head (beyond eq. 9).
         support_margin: decoded features are clipped to the training range of each column
             widened by this fraction of its width (``None``: no clipping). Keeps prior samples
             on the support of the data: a log-scaled mass far outside it would be e^20 kg.
         decoder_inputs: what the decoder reads of each node, ``"features"`` (eq. 9–10) or
             ``"types"`` (one-hot node type; :mod:`robovae.model.decoder`).
-        feature_shift, feature_noise: training-time feature augmentation
+        feature_shift: training-time feature augmentation
             (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
-            feature column and of per-node noise, in normalised units (0: off).
+            feature column, in normalised units (0: off).
+        feature_noise: std of per-node feature noise, in normalised units (0: off).
     """
 
     def __init__(
@@ -118,6 +122,7 @@ class RoboVAE(L.LightningModule):
         checkpoint["robovae_training_robots"] = self.training_robots
 
     def on_load_checkpoint(self, checkpoint: dict) -> None:
+        """Restore the training robots' records saved by :meth:`on_save_checkpoint`."""
         self.training_robots = checkpoint.get("robovae_training_robots", [])
 
     def normalized(self, batch: Batch) -> Batch:
@@ -206,12 +211,15 @@ class RoboVAE(L.LightningModule):
         return terms["loss"]
 
     def training_step(self, batch: Batch, batch_idx: int) -> Tensor:
+        """One optimisation step: the loss of :meth:`forward` on a (possibly augmented) batch."""
         return self._step(batch, "train", batch_idx)
 
     def validation_step(self, batch: Batch, batch_idx: int) -> Tensor:
+        """Validation loss terms (reconstruction metrics come from the callback)."""
         return self._step(batch, "val")
 
     def test_step(self, batch: Batch, batch_idx: int) -> Tensor:
+        """Test loss terms (reconstruction metrics come from the callback)."""
         return self._step(batch, "test")
 
     def predict_step(self, batch: Batch | dict, batch_idx: int) -> list[RobotData] | dict:
@@ -228,6 +236,8 @@ class RoboVAE(L.LightningModule):
                 "temperature": temp}
 
     def configure_optimizers(self):
+        """AdamW; with ``lr_schedule="cosine"`` the rate follows
+        ``lr_e = lr (f + (1 - f) (1 + cos(pi e / E)) / 2)``, ``f = lr_min_factor``."""
         hp = self.hparams
         opt = torch.optim.AdamW(self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
         if hp.lr_schedule == "constant":
