@@ -81,6 +81,8 @@ ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
               ("--model.topo_context=false", *_NO_AUG)),
     "no_augment": ("context, no augmentation", _NO_AUG),
     "no_context": ("augmentation, no context", ("--model.topo_context=false",)),
+    "clean_end": ("the configs, with the last 20 % of the epochs on the true features "
+                  "(augment_until 0.8)", ("--model.augment_until=0.8",)),
     "beta0.01": ("context, no augmentation, beta 0.01 (warm-up 100 epochs) instead of 1e-4",
                  (*_NO_AUG, "--model.beta=0.01", "--model.beta_warmup_epochs=100")),
 }

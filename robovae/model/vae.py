@@ -67,6 +67,8 @@ class RoboVAE(L.LightningModule):
             (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
             feature column, in normalised units (0: off).
         feature_noise: std of per-node feature noise, in normalised units (0: off).
+        augment_until: augmentation runs for this fraction of ``max_epochs``; the epochs after
+            it train on the true features (1.0: always augment).
     """
 
     def __init__(
@@ -87,6 +89,7 @@ class RoboVAE(L.LightningModule):
         support_margin: float | None = 0.1,
         feature_shift: float = 0.0,
         feature_noise: float = 0.0,
+        augment_until: float = 1.0,
         decoder_inputs: str = "features",
     ) -> None:
         super().__init__()
@@ -133,6 +136,17 @@ class RoboVAE(L.LightningModule):
 
     # --- training ------------------------------------------------------------------------
 
+    def augmenting(self) -> bool:
+        """Whether this training epoch perturbs the features (``feature_shift``/``noise`` set and
+        ``epoch < augment_until * max_epochs``)."""
+        hp = self.hparams
+        if not (hp.feature_shift > 0 or hp.feature_noise > 0):
+            return False
+        trainer = self._trainer
+        if hp.augment_until >= 1 or trainer is None or not trainer.max_epochs:
+            return True
+        return self.current_epoch < hp.augment_until * trainer.max_epochs
+
     def beta_at(self, epoch: int) -> float:
         """β of an epoch: linear warm-up from ``beta_start`` to ``beta``."""
         hp = self.hparams
@@ -171,7 +185,7 @@ class RoboVAE(L.LightningModule):
         nb = self.normalized(batch)
         sched = tree_schedule(nb)
         hp = self.hparams
-        if sample and self.training and (hp.feature_shift > 0 or hp.feature_noise > 0):
+        if sample and self.training and self.augmenting():
             nb.x = jitter_features(nb.x, nb.x_mask, sched.graph, sched.num_graphs,
                                    hp.feature_shift, hp.feature_noise,
                                    keep=self.normalizer.is_cat, generator=generator)

@@ -66,3 +66,27 @@ def test_model_jitters_in_training_only():
     t1, t2 = model(b, generator=g1)["loss"], model(b, generator=g2)["loss"]
     assert torch.equal(t1, t2)  # the batch generator drives the jitter: reproducible
     assert not torch.equal(t1, model(b, generator=torch.Generator().manual_seed(2))["loss"])
+
+
+def test_augmentation_stops_after_augment_until():
+    """``augment_until=0.5`` of 4 epochs: epochs 0-1 perturb the features, epochs 2-3 train on
+    the true ones."""
+    import lightning as L
+    from torch_geometric.loader import DataLoader
+
+    b = _batch(2)
+    model = RoboVAE(hidden_dim=16, latent_dim=4, feature_shift=0.5, augment_until=0.5)
+    model.normalizer.fit(torch.cat([d.x for d in b.to_data_list()]), b.node_type)
+    flags = []
+
+    class Record(L.Callback):
+        def on_train_epoch_start(self, trainer, pl_module):
+            flags.append(pl_module.augmenting())
+
+    trainer = L.Trainer(max_epochs=4, logger=False, enable_checkpointing=False,
+                        enable_progress_bar=False, enable_model_summary=False,
+                        callbacks=[Record()])
+    trainer.fit(model, DataLoader(b.to_data_list(), batch_size=2))
+    assert flags == [True, True, False, False]
+    assert not RoboVAE(hidden_dim=16, latent_dim=4).augmenting()  # nothing to augment
+    assert RoboVAE(hidden_dim=16, latent_dim=4, feature_noise=0.1).augmenting()  # no trainer
