@@ -61,7 +61,7 @@ EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
     Experiment("synthetic", "configs/synthetic.yaml", "structure exact, small FRE",
                "synthetic: 20 random trees -> unseen tree"),
     Experiment("synthetic_many", "configs/synthetic_many.yaml", "(not in the paper)",
-               "synthetic: 10,000 random trees -> unseen tree"),
+               "synthetic: 2,000 random trees -> unseen tree"),
     Experiment("menagerie2", "configs/menagerie2.yaml", "RA 100 %, FRE ~1e-3",
                "2 robots (Go1, A1) -> Go2"),
     Experiment("menagerie4", "configs/menagerie4.yaml", "RA 81 % (extra limb), FRE ~1e-3",
