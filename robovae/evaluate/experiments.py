@@ -8,6 +8,7 @@ run, and renders the result tables and loss curves::
     python -m robovae.evaluate.experiments run menagerie4 --seeds 0,1,2
     python -m robovae.evaluate.experiments loo --seeds 0,1,2      # leave-one-out over the 17
     python -m robovae.evaluate.experiments ablation --seeds 0,1,2
+    python -m robovae.evaluate.experiments study --seeds 0            # the 17-robot schedule
     python -m robovae.evaluate.experiments report                 # docs/results.md + docs/img
     python -m robovae.evaluate.experiments all                    # everything (``--all`` too)
 
@@ -83,8 +84,41 @@ ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
     "no_context": ("augmentation, no context", ("--model.topo_context=false",)),
     "clean_end": ("the configs, with the last 20 % of the epochs on the true features "
                   "(augment_until 0.8)", ("--model.augment_until=0.8",)),
+    "types": ("the configs with the type-input decoder (``decoder_inputs=types``)",
+              ("--model.decoder_inputs=types",)),
     "beta0.01": ("context, no augmentation, beta 0.01 (warm-up 100 epochs) instead of 1e-4",
                  (*_NO_AUG, "--model.beta=0.01", "--model.beta_warmup_epochs=100")),
+}
+
+
+_B17 = ("--data.batch_size=17",)
+_AUG = ("--model.feature_shift=0.5", "--model.feature_noise=0.1")
+_FEATURES = ("--model.decoder_inputs=features",)
+
+#: The 17-robot schedule study: name -> (change, CLI overrides on top of
+#: ``configs/menagerie17.yaml``). Runs go to ``runs/experiments/menagerie17/study-<name>/``; the
+#: table (``study_table``) reads each run's resolved ``config.yaml``, so it always shows what
+#: was actually trained.
+STUDY: dict[str, tuple[str, tuple[str, ...]]] = {
+    "features_aug_lr3_b17": ("the previous config: feature-input decoder, augmentation, lr 3e-3, "
+                             "one batch of 17", (*_FEATURES, *_AUG, "--model.lr=0.003", *_B17)),
+    "features_aug_clean_end": ("the same, true features for the last 20 % of the epochs",
+                               (*_FEATURES, *_AUG, "--model.augment_until=0.8",
+                                "--model.lr=0.003", *_B17)),
+    "features_lr3_b17": ("feature-input decoder, no augmentation, lr 3e-3, batch 17",
+                         (*_FEATURES, "--model.lr=0.003", *_B17)),
+    "types_aug_lr3_b17": ("type-input decoder, augmentation, lr 3e-3, batch 17",
+                          (*_AUG, "--model.lr=0.003", *_B17)),
+    "types_lr3_b17": ("type-input decoder, lr 3e-3, batch 17", ("--model.lr=0.003", *_B17)),
+    "types_lr3_b17_beta1e-5": ("the same with beta 1e-5",
+                               ("--model.lr=0.003", "--model.beta=1e-5", *_B17)),
+    "types_lr6_b17": ("type-input decoder, lr 6e-3, batch 17", _B17),
+    "types_lr12_b17": ("type-input decoder, lr 1.2e-2, batch 17", ("--model.lr=0.012", *_B17)),
+    "types_lr6_b17_e3000": ("type-input decoder, lr 6e-3, batch 17, 3000 epochs",
+                            (*_B17, "--trainer.max_epochs=3000")),
+    "types_lr6_b6_noclip": ("the config without gradient clipping",
+                            ("--trainer.gradient_clip_val=null",)),
+    "types_lr6_b6_e3000": ("the config with 3000 epochs", ("--trainer.max_epochs=3000",)),
 }
 
 
@@ -230,14 +264,14 @@ def experiment_specs(name: str, seeds: Sequence[int], variant: str = "default",
 def loo_specs(seeds: Sequence[int], robots: Sequence[str] = MENAGERIE17, variant: str = "default",
               extra: Sequence[str] = (), epochs: int | None = None,
               threads: int = 0, root: Path = RUNS) -> list[RunSpec]:
-    """Leave-one-out over the 17 robots: train on 16 (the menagerie17 config), test the 17th."""
+    """Leave-one-out over the 17 robots: train on 16 (``configs/loo17.yaml``), test the 17th."""
     specs = []
     for robot in robots:
         train = [n for n in MENAGERIE17 if n != robot]
         ov = [_names_arg("train_names", train), _names_arg("val_names", [robot]),
               _names_arg("test_names", [robot]), *extra]
         slug = robot.replace(" ", "_")
-        specs += [RunSpec("loo", "configs/menagerie17.yaml", s,
+        specs += [RunSpec("loo", "configs/loo17.yaml", s,
                           Path(root) / "loo" / variant / slug / f"seed{s}", ov, variant, epochs,
                           threads) for s in seeds]
     return specs
@@ -377,20 +411,16 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
 
 
 def ablation_table(results: list[dict]) -> str:
-    """Markdown table: one row per ablation variant: unseen Go2 from 2 and 4 robots, the
-    17-robot fit and leave-one-out."""
+    """Markdown table: one row per ablation variant: unseen Go2 from 2 and 4 robots and
+    leave-one-out (the 17-robot fit has its own study, :func:`study_table`)."""
     lines = ["| variant | change | 2 robots -> Go2: RA / RA_true / exact | "
-             "4 robots -> Go2: RA / RA_true / exact | 17 robots: mean RA / FRE | "
-             "LOO mean RA / exact |", "|---" * 6 + "|"]
+             "4 robots -> Go2: RA / RA_true / exact | LOO mean RA / exact |", "|---" * 5 + "|"]
     for v, (desc, _) in ABLATIONS.items():
         cells = []
         for exp in ("menagerie2", "menagerie4"):
             s = [r["summary"] for r in _group(results, experiment=exp, variant=v)]
             cells.append(" / ".join([_pct([x["ra"] for x in s]), _pct([x["ra_true"] for x in s]),
                                      _pct([x["exact"] for x in s])]) if s else "n/a")
-        s = [r["summary"] for r in _group(results, experiment="menagerie17", variant=v)]
-        cells.append(f"{_pct([x['ra'] for x in s])} / {_ms([x['fre'] for x in s], '{:.2g}')}"
-                     if s else "n/a")
         rs = _group(results, experiment="loo", variant=v)
         seeds = sorted({r["seed"] for r in rs})
         per_seed = [[r["test"][0] for r in rs if r["seed"] == s] for s in seeds]
@@ -399,6 +429,53 @@ def ablation_table(results: list[dict]) -> str:
                                  _pct([statistics.mean(float(t["exact"]) for t in p)
                                        for p in full])]) if full else "n/a")
         lines.append(f"| {v} | {desc} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _run_config(r: dict) -> dict:
+    """The resolved Lightning config of a run (``config.yaml`` beside its ``metrics.csv``)."""
+    import yaml
+
+    path = Path(r["metrics_csv"]).parent / "config.yaml"
+    return yaml.safe_load(path.read_text()) if path.is_file() else {}
+
+
+def study_table(results: list[dict]) -> str:
+    """Markdown table of the 17-robot schedule study (:data:`STUDY`) and the config itself:
+    settings read from each run's resolved config, mean over seeds of the 17 robots' RA, exact
+    match and FRE, Go2's FRE and the worst robot's."""
+    lines = ["| variant | change | decoder input | augmentation | lr | batch | grad clip | beta | "
+             "epochs | seeds | RA | exact | FRE (mean of 17) | FRE Go2 | FRE worst robot | "
+             "fit wall (s) |", "|---" * 16 + "|"]
+    rows = [(f"study-{k}", k, d) for k, (d, _) in STUDY.items()]
+    rows.append(("default", "**menagerie17.yaml**", "the config"))
+    for variant, name, desc in rows:
+        rs = sorted(_group(results, experiment="menagerie17", variant=variant),
+                    key=lambda r: r["seed"])
+        if not rs:
+            continue
+        cfg = _run_config(rs[0])
+        m, d, tr = cfg.get("model", {}), cfg.get("data", {}), cfg.get("trainer", {})
+        aug = "no"
+        if m.get("feature_shift", 0) or m.get("feature_noise", 0):
+            aug = f"shift {m.get('feature_shift')}, noise {m.get('feature_noise')}"
+            if m.get("augment_until", 1.0) < 1:
+                aug += f", until {m['augment_until']}"
+
+        def fre(r: dict, pick: str) -> float:
+            v = [t["fre"] for t in r["test"] if pick == "max" or t["name"] == pick]
+            return max(v) if v else math.nan
+
+        s = [r["summary"] for r in rs]
+        lines.append(
+            f"| {name} | {desc} | {m.get('decoder_inputs', 'features')} | {aug} | {m.get('lr')} "
+            f"| {d.get('batch_size')} | {tr.get('gradient_clip_val') or 'no'} | {m.get('beta')} | "
+            f"{rs[0]['epochs']} | "
+            f"{','.join(str(r['seed']) for r in rs)} | {_pct([x['ra'] for x in s])} | "
+            f"{_pct([x['exact'] for x in s])} | {_ms([x['fre'] for x in s], '{:.2g}')} | "
+            f"{_ms([fre(r, 'go2') for r in rs], '{:.2g}')} | "
+            f"{_ms([fre(r, 'max') for r in rs], '{:.2g}')} | "
+            f"{_ms([r['fit_s'] for r in rs], '{:.0f}')} |")
     return "\n".join(lines)
 
 
@@ -425,6 +502,7 @@ def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     text = _replace_block(text, "menagerie17", per_robot_table(results, "menagerie17"))
     text = _replace_block(text, "loo", loo_table(results))
     text = _replace_block(text, "ablation", ablation_table(results))
+    text = _replace_block(text, "study", study_table(results))
     doc.write_text(text)
     print(f"wrote {doc}")
 
@@ -465,6 +543,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ab = sub.add_parser("ablation", parents=[common], help="the ablation variants")
     ab.add_argument("--only", default="", help="comma-separated variants")
     ab.add_argument("--loo", action="store_true", help="also the leave-one-out per variant")
+    st = sub.add_parser("study", parents=[common], help="the 17-robot schedule study")
+    st.add_argument("--only", default="", help="comma-separated study variants")
     rp = sub.add_parser("report", help="write docs/results.md tables and docs/img loss curves")
     rp.add_argument("--root", default=str(RUNS), help="where runs are stored")
     al = sub.add_parser("all", parents=[common], help="every experiment, LOO, ablation, report")
@@ -497,6 +577,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 specs += experiment_specs(exp, args.seeds, v, ov, **ex)
             if args.loo:
                 specs += loo_specs(args.seeds, variant=v, extra=ov, **ex)
+        _run_all(specs, args.jobs, redo)
+    elif args.cmd == "study":
+        names = args.only.split(",") if args.only else list(STUDY)
+        specs = []
+        for v in names:
+            specs += experiment_specs("menagerie17", args.seeds, f"study-{v}",
+                                      list(STUDY[v][1]), **ex)
         _run_all(specs, args.jobs, redo)
     elif args.cmd == "all":
         specs = []

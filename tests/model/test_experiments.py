@@ -15,7 +15,7 @@ from robovae.model.checkpoint import load_model
 from tests.conftest import REPO
 
 
-@pytest.mark.parametrize("name", ["menagerie2", "menagerie4", "menagerie17"])
+@pytest.mark.parametrize("name", ["menagerie2", "menagerie4", "menagerie17", "loo17"])
 def test_menagerie_configs_name_real_robots(name, menagerie_dir, cache_root):
     from robovae.data.dataset import RobotDataset
 
@@ -29,6 +29,8 @@ def test_menagerie_configs_name_real_robots(name, menagerie_dir, cache_root):
         assert "go2" not in data["train_names"]
     else:
         assert set(data["train_names"]) == set(ex.MENAGERIE17) == names
+    if name == "loo17":  # the runner's hold-out of Go2 is this config's own split
+        assert set(data["train_names"]) | {"go2"} == set(ex.MENAGERIE17)
 
 
 def test_menagerie2_trains_scores_and_loads(tmp_path, menagerie_dir, cache_root):
@@ -89,3 +91,30 @@ def test_loo_specs_hold_out_one_robot():
     train = json.loads(specs[2].overrides[0].split("=", 1)[1])
     assert "barkour v0" not in train and len(train) == 16
     assert specs[2].out == Path("r/loo/default/barkour_v0/seed0")
+
+
+def test_study_table_reads_each_runs_resolved_config(tmp_path):
+    """The study rows show the settings a run was trained with (its config.yaml), not the
+    current config file."""
+    results = []
+    for variant, inputs, lr, batch, fre in (("study-features_aug_lr3_b17", "features", 0.003,
+                                             17, 0.03), ("default", "types", 0.006, 6, 5e-4)):
+        run = tmp_path / variant / "seed0"
+        run.mkdir(parents=True)
+        (run / "config.yaml").write_text(yaml.safe_dump({
+            "model": {"decoder_inputs": inputs, "lr": lr, "beta": 1e-4,
+                      "feature_shift": 0.5 if inputs == "features" else 0.0,
+                      "feature_noise": 0.1 if inputs == "features" else 0.0},
+            "data": {"batch_size": batch},
+            "trainer": {"gradient_clip_val": 10.0 if inputs == "types" else None}}))
+        r = _fake("menagerie17", 0, "go2", 1.0)
+        r.update(variant=variant, metrics_csv=str(run / "metrics.csv"), epochs=1500)
+        r["test"][0]["fre"] = r["summary"]["fre"] = fre
+        results.append(r)
+    text = ex.study_table(results)
+    rows = {line.split(" | ")[0]: line for line in text.splitlines()[2:]}
+    assert set(rows) == {"| features_aug_lr3_b17", "| **menagerie17.yaml**"}
+    assert "| features | shift 0.5, noise 0.1 | 0.003 | 17 | no |" in rows["| features_aug_lr3_b17"]
+    assert "| types | no | 0.006 | 6 | 10.0 |" in rows["| **menagerie17.yaml**"]
+    assert "| 0.0005 | 0.0005 | 0.0005 |" in rows["| **menagerie17.yaml**"]
+    assert list(rows)[-1] == "| **menagerie17.yaml**"  # the config comes last
