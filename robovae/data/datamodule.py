@@ -22,11 +22,11 @@ class RobotDataModule(L.LightningDataModule):
         feature_set: ``paper34`` or ``full`` (synthetic sources force ``random<d>``).
         root: cache folder of the processed dataset.
         train_names: robots to train on (default: all not in val/test).
-        val_names: robots held out by name. When both are empty the split is by
-            fraction (``val_fraction``/``test_fraction``, seeded shuffle).
-        test_names: see ``val_names``.
-        val_fraction: fractions used when no names are given.
-        test_fraction: see ``val_fraction``.
+        val_names: robots held out for validation, by name. When ``val_names`` and
+            ``test_names`` are both empty the split is by fraction (seeded shuffle).
+        test_names: robots held out for testing, by name.
+        val_fraction: share of the robots for validation when no names are given.
+        test_fraction: share of the robots for testing when no names are given.
         val_is_train: validate on the training robots (for overfitting experiments and tiny
             sets where a held-out robot is the test robot).
         batch_size: graphs per batch.
@@ -34,8 +34,8 @@ class RobotDataModule(L.LightningDataModule):
         num_workers: DataLoader workers.
         predict_samples: when > 0, ``predict`` decodes this many prior samples (robot indices
             ``0 … n-1``, see :mod:`robovae.generate.predict`) instead of the test robots.
-        predict_seed: seed and prior temperature of those samples.
-        predict_temperature: see ``predict_seed``.
+        predict_seed: seed of those samples.
+        predict_temperature: prior temperature of those samples.
     """
 
     def __init__(

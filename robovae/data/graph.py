@@ -66,8 +66,8 @@ def tree_data(
         node_type: node type id per node.
         x: ``[N, d]`` physical feature values.
         feature_set: the registry set the columns follow.
-        name: robot name and where it came from.
-        source: see ``name``.
+        name: robot name.
+        source: where the robot came from (file or generator).
         **extra: further attributes to store (e.g. ``warnings``).
 
     Raises:

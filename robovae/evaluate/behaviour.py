@@ -157,8 +157,8 @@ def state_entropy(robot: Robot, seconds: float = 3.0, rollouts: int = 8, hold: f
 
     Args:
         robot: a robot file or ``mujoco.MjSpec``.
-        seconds: length and number of episodes.
-        rollouts: see ``seconds``.
+        seconds: length of each episode.
+        rollouts: number of episodes.
         hold: seconds each random control is held.
         sample_dt: seconds between recorded states.
         k: neighbours of the entropy estimator.

@@ -110,10 +110,10 @@ def match_trees(
     depth are fine.
 
     Args:
-        true_parent: parent vectors (root = -1), children in canonical order.
-        pred_parent: see ``true_parent``.
-        true_type: node type per node (only checked for length).
-        pred_type: see ``true_type``.
+        true_parent: parent vector of the true tree (root = -1), children in canonical order.
+        pred_parent: parent vector of the decoded tree, same convention.
+        true_type: node type per node of the true tree (only checked for length).
+        pred_type: node type per node of the decoded tree (only checked for length).
 
     Returns:
         Matched ``(true_idx, pred_idx)`` pairs in depth-first pre-order of the matched subtree,
@@ -163,8 +163,8 @@ def reconstruction_metrics(
     correct nodes owning it, physical units.
 
     Args:
-        true: robot graphs (``parent``, ``node_type``, physical ``x``).
-        pred: see ``true``.
+        true: the true robot graph (``parent``, ``node_type``, physical ``x``).
+        pred: the decoded robot graph, same attributes.
         normalizer: maps physical ``x`` to model units for FRE; ``None`` scores raw values.
         feature_set: the column layout; defaults to the normaliser's. Without either, the
             own-column mask is taken from ``true.x_mask`` and ``feature_mae`` is empty.

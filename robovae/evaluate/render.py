@@ -277,8 +277,8 @@ def auto_camera(model: mujoco.MjModel, data: mujoco.MjData | None = None, *,
     ``elevation`` (degrees), as close as keeps every bounding point in the view (× ``margin``).
 
     Args:
-        model: the robot; ``data`` defaults to the ``mj_forward`` of ``qpos0``.
-        data: see ``model``.
+        model: the compiled robot.
+        data: its state; defaults to the ``mj_forward`` of ``qpos0``.
         aspect: image width / height (the horizontal field of view follows from it).
 
     Returns:
@@ -475,8 +475,8 @@ def render_robot(model_or_path: Robot, width: int = 480, height: int = 360,
     Args:
         model_or_path: a robot file (``.xml``/``.urdf``; missing meshes are dropped), a
             compiled ``mujoco.MjModel`` or a ``mujoco.MjSpec`` (copied, not changed).
-        width: image size in pixels.
-        height: see ``width``.
+        width: image width in pixels.
+        height: image height in pixels.
         camera: overrides of the automatic camera (keys ``lookat``, ``distance``, ``azimuth``,
             ``elevation``; the distance is re-fitted when only the angles are given), or
             ``{"name": <model camera>}``.

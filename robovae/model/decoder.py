@@ -135,8 +135,8 @@ class TreeDecoder(nn.Module):
         type_mask: optional ``[num_types, d]`` bool (``FeatureSet.type_mask()``): decoded nodes
             get zeros outside their type's columns, as real inputs have, so that decoding sees
             what teacher forcing saw. Default: every column belongs to every type.
-        max_depth_embed: clamps of the context embeddings.
-        max_children_embed: see ``max_depth_embed``.
+        max_depth_embed: depths above this share the last depth embedding.
+        max_children_embed: child counts above this share the last count embedding.
         inputs: ``"features"`` (eq. 9–10 as published) or ``"types"`` (module docstring).
     """
 
