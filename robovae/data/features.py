@@ -88,6 +88,7 @@ class FeatureSet:
     node_types: tuple[str, ...]
     features: tuple[Feature, ...]
     _slices: dict[str, slice] = field(init=False, repr=False, compare=False)
+    _type_mask: Tensor = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         slices, start = {}, 0
@@ -99,6 +100,10 @@ class FeatureSet:
             slices[f.key] = slice(start, start + f.width)
             start += f.width
         object.__setattr__(self, "_slices", slices)
+        mask = torch.zeros(len(self.node_types), start, dtype=torch.bool)
+        for f in self.features:
+            mask[self.node_types.index(f.node_type), slices[f.key]] = True
+        object.__setattr__(self, "_type_mask", mask)
 
     @property
     def dim(self) -> int:
@@ -126,15 +131,13 @@ class FeatureSet:
         return [f for f in self.features if f.node_type == node_type]
 
     def type_mask(self) -> Tensor:
-        """Boolean ``[num_node_types, dim]``: which columns belong to which node type."""
-        mask = torch.zeros(self.num_node_types, self.dim, dtype=torch.bool)
-        for f in self.features:
-            mask[self.node_types.index(f.node_type), self._slices[f.key]] = True
-        return mask
+        """Boolean ``[num_node_types, dim]``: which columns belong to which node type (a
+        fresh copy)."""
+        return self._type_mask.clone()
 
     def mask(self, node_type: Tensor) -> Tensor:
         """Per-node column mask ``[N, dim]`` for a vector of node type ids."""
-        return self.type_mask()[node_type]
+        return self._type_mask[node_type]
 
     def column_attr(self, attr: str) -> Tensor:
         """A per-column tensor of a :class:`Feature` attribute (``low``, ``high``, ``eps``)."""

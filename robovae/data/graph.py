@@ -90,12 +90,13 @@ def tree_data(
         raise ValueError("parent vector is not in depth-first pre-order")
     if bool(((types < 0) | (types >= fs.num_node_types)).any()):
         raise ValueError(f"node types must be in [0, {fs.num_node_types})")
-    depth = torch.zeros(n, dtype=torch.long)
+    par_list, depth_list = parent_t.tolist(), [0] * n
     for i in range(1, n):
-        depth[i] = depth[parent_t[i]] + 1
+        depth_list[i] = depth_list[par_list[i]] + 1
+    depth = torch.tensor(depth_list, dtype=torch.long)
     child, par = idx[1:], parent_t[1:]
     edge_index = torch.stack([torch.cat([par, child]), torch.cat([child, par])])
-    mask = fs.type_mask()[types]
+    mask = fs.mask(types)
     x = torch.where(mask, x.float(), torch.zeros((), dtype=torch.float32))
     return RobotData(x=x, x_mask=mask, edge_index=edge_index, parent=parent_t, node_type=types,
                      depth=depth, name=name, source=source, num_nodes=n, **extra)

@@ -86,6 +86,9 @@ ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
                   "(augment_until 0.8)", ("--model.augment_until=0.8",)),
     "types": ("the configs with the type-input decoder (``decoder_inputs=types``)",
               ("--model.decoder_inputs=types",)),
+    "surgery": ("the configs + tree surgery: half the training robots of every step rebuilt "
+                "by 1-3 random limb edits (drop, duplicate, graft, swap)",
+                ("--model.tree_surgery=0.5",)),
     "beta0.01": ("context, no augmentation, beta 0.01 (warm-up 100 epochs) instead of 1e-4",
                  (*_NO_AUG, "--model.beta=0.01", "--model.beta_warmup_epochs=100")),
 }

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import random
 from collections.abc import Mapping, Sequence
 
 import lightning as L
@@ -31,7 +32,7 @@ from torch_geometric.data import Batch, Data
 from robovae.data.features import Normalizer, get_feature_set
 from robovae.data.graph import RobotData, tree_data
 from robovae.errors import RobovaeError
-from robovae.model.augment import jitter_features
+from robovae.model.augment import jitter_features, tree_surgery
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
@@ -67,8 +68,13 @@ class RoboVAE(L.LightningModule):
             (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
             feature column, in normalised units (0: off).
         feature_noise: std of per-node feature noise, in normalised units (0: off).
-        augment_until: augmentation runs for this fraction of ``max_epochs``; the epochs after
-            it train on the true features (1.0: always augment).
+        tree_surgery: training-time topology augmentation
+            (:func:`~robovae.model.augment.tree_surgery`): probability that a training robot is
+            rebuilt by random limb edits (drop, duplicate, graft from a batch mate, swap) in a
+            training step (0: off).
+        surgery_ops: at most this many edits per rebuilt robot.
+        augment_until: augmentation (features and trees) runs for this fraction of
+            ``max_epochs``; the epochs after it train on the true robots (1.0: always augment).
     """
 
     def __init__(
@@ -91,6 +97,8 @@ class RoboVAE(L.LightningModule):
         feature_noise: float = 0.0,
         augment_until: float = 1.0,
         decoder_inputs: str = "features",
+        tree_surgery: float = 0.0,
+        surgery_ops: int = 3,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -137,10 +145,10 @@ class RoboVAE(L.LightningModule):
     # --- training ------------------------------------------------------------------------
 
     def augmenting(self) -> bool:
-        """Whether this training epoch perturbs the features (``feature_shift``/``noise`` set and
-        ``epoch < augment_until * max_epochs``)."""
+        """Whether this training epoch augments the robots (``feature_shift``/``noise`` or
+        ``tree_surgery`` set and ``epoch < augment_until * max_epochs``)."""
         hp = self.hparams
-        if not (hp.feature_shift > 0 or hp.feature_noise > 0):
+        if not (hp.feature_shift > 0 or hp.feature_noise > 0 or hp.tree_surgery > 0):
             return False
         trainer = self._trainer
         if hp.augment_until >= 1 or trainer is None or not trainer.max_epochs:
@@ -181,11 +189,19 @@ class RoboVAE(L.LightningModule):
     def forward(self, batch: Batch, sample: bool = True,
                 generator: torch.Generator | None = None) -> dict[str, Tensor]:
         """Loss terms of a batch of physical-unit robot graphs (teacher forcing). With
-        ``sample``, ``z`` is drawn from ``q(z | G)`` (noise from ``generator`` when given)."""
+        ``sample``, ``z`` is drawn from ``q(z | G)`` (noise from ``generator`` when given).
+        Training batches are augmented first (``tree_surgery``, then the feature jitter)."""
+        hp = self.hparams
+        augment = sample and self.training and self.augmenting()
+        if augment and hp.tree_surgery > 0:
+            seed = generator.initial_seed() if generator is not None else \
+                int(torch.randint(2 ** 62, (1,)))
+            batch = Batch.from_data_list(tree_surgery(
+                batch.to_data_list(), self.feature_set, hp.tree_surgery, hp.surgery_ops,
+                hp.max_nodes, random.Random(seed)))
         nb = self.normalized(batch)
         sched = tree_schedule(nb)
-        hp = self.hparams
-        if sample and self.training and self.augmenting():
+        if augment:
             nb.x = jitter_features(nb.x, nb.x_mask, sched.graph, sched.num_graphs,
                                    hp.feature_shift, hp.feature_noise,
                                    keep=self.normalizer.is_cat, generator=generator)

@@ -1,13 +1,17 @@
-"""Feature augmentation (``feature_shift`` / ``feature_noise``): what it perturbs and what not."""
+"""Training-time augmentation: feature jitter (``feature_shift`` / ``feature_noise``) and tree
+surgery (``tree_surgery``): what they change and what not."""
 
 from __future__ import annotations
 
+import random
+
+import pytest
 import torch
 from torch_geometric.data import Batch
 
 from robovae.data.features import get_feature_set
-from robovae.data.graph import tree_data
-from robovae.model.augment import jitter_features
+from robovae.data.graph import children, tree_data
+from robovae.model.augment import SURGERY_OPS, jitter_features, tree_surgery
 from robovae.model.vae import RoboVAE
 
 FS = get_feature_set("paper34")
@@ -90,3 +94,104 @@ def test_augmentation_stops_after_augment_until():
     assert flags == [True, True, False, False]
     assert not RoboVAE(hidden_dim=16, latent_dim=4).augmenting()  # nothing to augment
     assert RoboVAE(hidden_dim=16, latent_dim=4, feature_noise=0.1).augmenting()  # no trainer
+
+
+# --- tree surgery ----------------------------------------------------------------------------
+
+
+def _robots() -> list:
+    """Two robots with distinct feature rows: J(L(J(L(J(L))) J(L))) and J(L(J(L) J(L) J(L)))."""
+    specs = [([-1, 0, 1, 2, 3, 4, 1, 6], [1, 0, 1, 0, 1, 0, 1, 0]),
+             ([-1, 0, 1, 2, 1, 4, 1, 6], [1, 0, 1, 0, 1, 0, 1, 0])]
+    out = []
+    for g, (parent, types) in enumerate(specs):
+        x = torch.arange(len(parent) * FS.dim, dtype=torch.float32).view(len(parent), FS.dim)
+        out.append(tree_data(parent, types, x + 1000 * g, FS, name=f"r{g}"))
+    return out
+
+
+def _shape(d) -> str:
+    ch, t = children(d.parent), d.node_type.tolist()
+
+    def rec(i: int) -> str:
+        return "LJ"[t[i]] + ("(" + "".join(rec(k) for k in ch[i]) + ")" if ch[i] else "")
+
+    return rec(0)
+
+
+def _rows(d) -> set[tuple]:
+    return {(int(t), tuple(r.tolist())) for t, r in zip(d.node_type, d.x, strict=True)}
+
+
+def _edges(d) -> set[tuple]:
+    """(parent type, parent row, child type, child row) of every edge: limbs move whole."""
+    kid = (d.parent >= 0).nonzero().flatten()
+    return {(int(d.node_type[p]), tuple(d.x[p].tolist()), int(d.node_type[c]),
+             tuple(d.x[c].tolist())) for p, c in zip(d.parent[kid], kid, strict=True)
+            if c != 0}
+
+
+def test_surgery_off_keeps_every_robot():
+    robots = _robots()
+    out = tree_surgery(robots, FS, 0.0, 3, 64, random.Random(0))
+    for a, b in zip(robots, out, strict=True):
+        assert torch.equal(a.parent, b.parent) and torch.equal(a.x, b.x)
+
+
+@pytest.mark.parametrize("op", SURGERY_OPS)
+def test_each_edit_gives_a_valid_tree_of_known_limbs(op):
+    robots = _robots()
+    known = set().union(*(_rows(d) for d in robots))
+    changed = 0
+    for seed in range(20):
+        out = tree_surgery(robots, FS, 1.0, 1, 64, random.Random(seed), ops=(op,))
+        for before, after in zip(robots, out, strict=True):
+            # tree_data validated the pre-order; features travel with their node and type
+            assert _rows(after) <= known
+            assert torch.equal(after.x_mask, FS.mask(after.node_type))
+            assert after.node_type[0] == before.node_type[0]  # the root is never edited
+            edges = set().union(*(_edges(d) for d in robots))
+            if op == "graft":  # a new edge, host link -> donor limb: compare the types only
+                edges, new = {(e[0], e[2]) for e in edges}, {(e[0], e[2]) for e in _edges(after)}
+            else:
+                new = _edges(after)
+            assert new <= edges
+            n0, n1 = before.num_nodes, after.num_nodes
+            assert {"drop": n1 < n0, "duplicate": n1 > n0, "graft": n1 > n0,
+                    "swap": n1 == n0}[op]
+            changed += _shape(after) != _shape(before)
+    assert changed > 0
+
+
+def test_swap_exchanges_adjacent_siblings():
+    robot = _robots()[0]  # J(L(J(L(J(L))) J(L))): the base link's two limbs
+    (out,) = tree_surgery([robot], FS, 1.0, 1, 64, random.Random(0), ops=("swap",))
+    assert _shape(robot) == "J(L(J(L(J(L)))J(L)))"
+    assert _shape(out) == "J(L(J(L)J(L(J(L)))))"
+    assert torch.equal(out.x[2], robot.x[6]) and torch.equal(out.x[4], robot.x[2])
+
+
+def test_duplicate_and_graft_respect_max_nodes():
+    for seed in range(20):
+        for d in tree_surgery(_robots(), FS, 1.0, 5, 9, random.Random(seed),
+                              ops=("duplicate", "graft")):
+            assert d.num_nodes <= 9
+
+
+def test_unknown_op_is_refused():
+    with pytest.raises(ValueError, match="unknown tree surgery ops"):
+        tree_surgery(_robots(), FS, 1.0, 1, 64, random.Random(0), ops=("mirror",))
+
+
+def test_model_rebuilds_trees_in_training_only():
+    robots = _robots()
+    b = Batch.from_data_list(robots)
+    model = RoboVAE(hidden_dim=16, latent_dim=4, tree_surgery=1.0, surgery_ops=2)
+    model.normalizer.fit(b.x, b.node_type)
+    model.eval()
+    assert torch.equal(model(b, sample=False)["loss"], model(b, sample=False)["loss"])
+    model.train()
+    losses = [model(b, generator=torch.Generator().manual_seed(k))["loss"] for k in (1, 1, 2)]
+    assert torch.equal(losses[0], losses[1])  # the batch generator drives the surgery
+    assert not torch.equal(losses[0], losses[2])
+    assert all(torch.isfinite(t) for t in losses)
