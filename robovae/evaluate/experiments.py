@@ -413,6 +413,34 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
     return "\n".join(lines)
 
 
+def loo_compare_table(results: list[dict], variants: Sequence[str] = ("default", "surgery"),
+                      seed: int = 0) -> str:
+    """Markdown table of the leave-one-out runs of one seed, the variants side by side: RA,
+    RA_true and decoded node count per held-out robot, and the mean over the robots that every
+    variant has run."""
+    tests = {v: {r["test"][0]["name"]: r["test"][0]
+                 for r in _group(results, experiment="loo", variant=v, seed=seed)}
+             for v in variants}
+    variants = [v for v in variants if tests[v]]
+    head = ["held-out robot", "nodes", *(f"RA {v}" for v in variants),
+            *(f"RA_true {v}" for v in variants), "decoded nodes (" + " / ".join(variants) + ")"]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    both = [n for n in MENAGERIE17 if all(n in tests[v] for v in variants)]
+    for n in both:
+        ts = [tests[v][n] for v in variants]
+        lines.append(f"| {n} | {ts[0]['n_true']} | "
+                     + " | ".join(_pct([t["ra"]]) for t in ts) + " | "
+                     + " | ".join(_pct([t["ra_true"]]) for t in ts) + " | "
+                     + " / ".join(str(t["n_pred"]) for t in ts) + " |")
+    if both:
+        lines.append(f"| **mean over {len(both)} robots** | | "
+                     + " | ".join(_pct([statistics.mean(tests[v][n]["ra"] for n in both)])
+                                  for v in variants) + " | "
+                     + " | ".join(_pct([statistics.mean(tests[v][n]["ra_true"] for n in both)])
+                                  for v in variants) + f" | seed {seed} |")
+    return "\n".join(lines)
+
+
 def ablation_table(results: list[dict]) -> str:
     """Markdown table: one row per ablation variant: unseen Go2 from 2 and 4 robots and
     leave-one-out (the 17-robot fit has its own study, :func:`study_table`)."""
@@ -500,6 +528,7 @@ def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     text = _replace_block(text, "experiments", experiments_table(results))
     text = _replace_block(text, "menagerie17", per_robot_table(results, "menagerie17"))
     text = _replace_block(text, "loo", loo_table(results))
+    text = _replace_block(text, "loo_compare", loo_compare_table(results))
     text = _replace_block(text, "ablation", ablation_table(results))
     text = _replace_block(text, "study", study_table(results))
     doc.write_text(text)

@@ -85,6 +85,18 @@ def test_report_fills_the_marked_blocks(tmp_path, monkeypatch):
     assert f"{mean:.1f} ± 0.0 %" in text
 
 
+def test_loo_compare_table_puts_variants_side_by_side():
+    results = [_fake("loo", 0, n, 0.5) for n in ex.MENAGERIE17]
+    results += [_fake("loo", 0, n, 1.0, variant="surgery") for n in ("go2", "z1")]
+    results += [_fake("loo", 1, "go2", 0.0, variant="surgery")]  # another seed: not shown
+    table = ex.loo_compare_table(results)
+    assert "| RA default | RA surgery |" in table
+    assert "| go2 | 26 | 50.0 % | 100.0 % | 50.0 % | 100.0 % | 26 / 26 |" in table
+    assert "| piper_description |" not in table  # only robots both variants ran
+    assert "| **mean over 2 robots** | | 50.0 % | 100.0 % |" in table
+    assert "| RA default |" in ex.loo_compare_table(results, ("default", "nope"))
+
+
 def test_loo_specs_hold_out_one_robot():
     specs = ex.loo_specs([0, 1], robots=["go2", "barkour v0"], root=Path("r"))
     assert len(specs) == 4
