@@ -413,31 +413,40 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
     return "\n".join(lines)
 
 
-def loo_compare_table(results: list[dict], variants: Sequence[str] = ("default", "surgery"),
-                      seed: int = 0) -> str:
-    """Markdown table of the leave-one-out runs of one seed, the variants side by side: RA,
-    RA_true and decoded node count per held-out robot, and the mean over the robots that every
-    variant has run."""
-    tests = {v: {r["test"][0]["name"]: r["test"][0]
-                 for r in _group(results, experiment="loo", variant=v, seed=seed)}
-             for v in variants}
-    variants = [v for v in variants if tests[v]]
+def loo_compare_table(results: list[dict],
+                      variants: Sequence[str] = ("default", "surgery")) -> str:
+    """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true and
+    decoded node count per held-out robot (mean ± spread over the seeds that every variant has
+    runs of), for the robots that every variant has run with all those seeds, and their mean."""
+    runs: dict[str, dict[str, dict[int, dict]]] = {}
+    for v in variants:
+        for r in _group(results, experiment="loo", variant=v):
+            runs.setdefault(v, {}).setdefault(r["test"][0]["name"], {})[r["seed"]] = r["test"][0]
+    variants = [v for v in variants if v in runs]
+    seeds = sorted(set.intersection(*({s for ts in runs[v].values() for s in ts}
+                                        for v in variants))) if variants else []
+    both = [n for n in MENAGERIE17
+            if all(n in runs[v] and set(seeds) <= set(runs[v][n]) for v in variants)]
     head = ["held-out robot", "nodes", *(f"RA {v}" for v in variants),
             *(f"RA_true {v}" for v in variants), "decoded nodes (" + " / ".join(variants) + ")"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
-    both = [n for n in MENAGERIE17 if all(n in tests[v] for v in variants)]
+    if not seeds:
+        return "\n".join(lines)
+
+    def cell(key: str, v: str, names: list[str]) -> str:  # per seed: mean over the robots
+        return _pct([statistics.mean(runs[v][n][s][key] for n in names) for s in seeds])
+
     for n in both:
-        ts = [tests[v][n] for v in variants]
-        lines.append(f"| {n} | {ts[0]['n_true']} | "
-                     + " | ".join(_pct([t["ra"]]) for t in ts) + " | "
-                     + " | ".join(_pct([t["ra_true"]]) for t in ts) + " | "
-                     + " / ".join(str(t["n_pred"]) for t in ts) + " |")
+        lines.append(f"| {n} | {runs[variants[0]][n][seeds[0]]['n_true']} | "
+                     + " | ".join(cell("ra", v, [n]) for v in variants) + " | "
+                     + " | ".join(cell("ra_true", v, [n]) for v in variants) + " | "
+                     + " / ".join(",".join(str(runs[v][n][s]["n_pred"]) for s in seeds)
+                                  for v in variants) + " |")
     if both:
         lines.append(f"| **mean over {len(both)} robots** | | "
-                     + " | ".join(_pct([statistics.mean(tests[v][n]["ra"] for n in both)])
-                                  for v in variants) + " | "
-                     + " | ".join(_pct([statistics.mean(tests[v][n]["ra_true"] for n in both)])
-                                  for v in variants) + f" | seed {seed} |")
+                     + " | ".join(cell("ra", v, both) for v in variants) + " | "
+                     + " | ".join(cell("ra_true", v, both) for v in variants)
+                     + f" | seeds {','.join(map(str, seeds))} (± over seeds) |")
     return "\n".join(lines)
 
 

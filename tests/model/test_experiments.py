@@ -86,15 +86,19 @@ def test_report_fills_the_marked_blocks(tmp_path, monkeypatch):
 
 
 def test_loo_compare_table_puts_variants_side_by_side():
-    results = [_fake("loo", 0, n, 0.5) for n in ex.MENAGERIE17]
-    results += [_fake("loo", 0, n, 1.0, variant="surgery") for n in ("go2", "z1")]
-    results += [_fake("loo", 1, "go2", 0.0, variant="surgery")]  # another seed: not shown
+    results = [_fake("loo", s, n, 0.5) for s in (0, 1) for n in ex.MENAGERIE17]
+    results += [_fake("loo", s, n, 1.0 - 0.5 * s, variant="surgery")
+                for s in (0, 1) for n in ("go2", "z1")]
+    results += [_fake("loo", 0, "h1", 1.0, variant="surgery")]  # seed 1 missing: not shown
     table = ex.loo_compare_table(results)
     assert "| RA default | RA surgery |" in table
-    assert "| go2 | 26 | 50.0 % | 100.0 % | 50.0 % | 100.0 % | 26 / 26 |" in table
-    assert "| piper_description |" not in table  # only robots both variants ran
-    assert "| **mean over 2 robots** | | 50.0 % | 100.0 % |" in table
+    assert "| go2 | 26 | 50.0 ± 0.0 % | 75.0 ± 35.4 % | 50.0 ± 0.0 % | 75.0 ± 35.4 % | " \
+           "26,26 / 26,26 |" in table
+    assert "| h1 |" not in table and "| piper_description |" not in table
+    assert "| **mean over 2 robots** | | 50.0 ± 0.0 % | 75.0 ± 35.4 % |" in table
+    assert "seeds 0,1" in table
     assert "| RA default |" in ex.loo_compare_table(results, ("default", "nope"))
+    assert ex.loo_compare_table([], ("default",)).count("\n") == 1  # header only
 
 
 def test_loo_specs_hold_out_one_robot():
