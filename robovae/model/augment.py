@@ -159,8 +159,8 @@ def tree_surgery(graphs: Sequence[RobotData], feature_set: FeatureSet, prob: flo
                         parent, nodes = _splice(parent, nodes, _subtree_end(parent, host), sub,
                                                 [(di, r) for r in range(i, j)], host)
             elif op == "swap":
-                pairs = [(a, b) for a in limbs for b in limbs
-                         if parent[a] == parent[b] and _subtree_end(parent, a) == b]
+                ends = [(a, _subtree_end(parent, a)) for a in limbs]
+                pairs = [(a, b) for a, b in ends if b < len(parent) and parent[b] == parent[a]]
                 if pairs:
                     parent, nodes = _swap(parent, nodes, *rng.choice(pairs))
         x = all_x.index_select(0, torch.tensor([offset[s] + r for s, r in nodes]))
