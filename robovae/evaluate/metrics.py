@@ -194,7 +194,7 @@ def reconstruction_metrics(
         xt = true.x[ti].detach().float().cpu()
         xp = pred.x[pj].detach().float().cpu()
         if fs is not None:
-            mask = fs.type_mask()[types]
+            mask = fs.mask(types)
         elif getattr(true, "x_mask", None) is not None:
             mask = true.x_mask[ti].bool().cpu()
         else:

@@ -200,7 +200,7 @@ class _View:
         self.types = data.node_type.tolist()
         self.parent = data.parent.tolist()
         self.kids = children(self.parent)
-        self.mask = fs.type_mask()[data.node_type].numpy()
+        self.mask = fs.mask(data.node_type).numpy()
         self.keys = {f.key for f in fs.features}
 
     def has(self, key: str) -> bool:

@@ -80,6 +80,11 @@ def _subtree_end(parent: list[int], i: int) -> int:
     return end
 
 
+def _relative(parent: list[int], i: int, j: int) -> list[int]:
+    """The parent vector of the subtree ``[i, j)`` on its own: -1 at its root ``i``."""
+    return [-1] + [p - i for p in parent[i + 1:j]]
+
+
 def _splice(parent: list[int], nodes: list, at: int, sub_parent: list[int], sub_nodes: list,
             new_parent: int) -> tuple[list[int], list]:
     """Insert a pre-order subtree (``sub_parent``: relative indices, -1 at its root) at
@@ -118,7 +123,7 @@ def tree_surgery(graphs: Sequence[RobotData], feature_set: FeatureSet, prob: flo
     """
     if unknown := set(ops) - set(SURGERY_OPS):
         raise ValueError(f"unknown tree surgery ops {sorted(unknown)} (known: {SURGERY_OPS})")
-    pool = [([int(p) for p in g.parent.tolist()], g.node_type.tolist()) for g in graphs]
+    pool = [(g.parent.tolist(), g.node_type.tolist()) for g in graphs]
     attach = set(attach_types)
     all_x = torch.cat([g.x for g in graphs])
     offset = [0]
@@ -129,9 +134,9 @@ def tree_surgery(graphs: Sequence[RobotData], feature_set: FeatureSet, prob: flo
         if rng.random() >= prob:  # the same robot, with the fields a rebuilt one has
             out.append(RobotData(**{k: g[k] for k in _FIELDS}, num_nodes=g.num_nodes))
             continue
-        parent0, types0 = pool[gi]
         # every node is (source graph, source row): features and type come from there
-        parent, nodes = list(parent0), [(gi, r) for r in range(len(parent0))]
+        parent = list(pool[gi][0])
+        nodes = [(gi, r) for r in range(len(parent))]
         for _ in range(rng.randint(1, max_ops)):
             kind = [pool[s][1][r] for s, r in nodes]
             limbs = [i for i in range(1, len(parent)) if kind[parent[i]] in attach]
@@ -143,8 +148,8 @@ def tree_surgery(graphs: Sequence[RobotData], feature_set: FeatureSet, prob: flo
                 i = rng.choice(limbs)
                 j = _subtree_end(parent, i)
                 if len(parent) + j - i <= max_nodes:
-                    sub = [-1] + [p - i for p in parent[i + 1:j]]
-                    parent, nodes = _splice(parent, nodes, j, sub, nodes[i:j], parent[i])
+                    parent, nodes = _splice(parent, nodes, j, _relative(parent, i, j),
+                                            nodes[i:j], parent[i])
             elif op == "graft":
                 di = rng.randrange(len(graphs))
                 dpar, dtypes = pool[di]
@@ -155,8 +160,8 @@ def tree_surgery(graphs: Sequence[RobotData], feature_set: FeatureSet, prob: flo
                     j = _subtree_end(dpar, i)
                     if len(parent) + j - i <= max_nodes:
                         host = rng.choice(hosts)
-                        sub = [-1] + [p - i for p in dpar[i + 1:j]]
-                        parent, nodes = _splice(parent, nodes, _subtree_end(parent, host), sub,
+                        parent, nodes = _splice(parent, nodes, _subtree_end(parent, host),
+                                                _relative(dpar, i, j),
                                                 [(di, r) for r in range(i, j)], host)
             elif op == "swap":
                 ends = [(a, _subtree_end(parent, a)) for a in limbs]
