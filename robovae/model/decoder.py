@@ -27,6 +27,12 @@ one-hot node type: the messages then carry the tree built so far (types, depths,
 and ``z`` alone carries the robot; teacher forcing and decoding see identical inputs whenever the
 types are right. Features are predicted the same way (eq. 10) in both modes.
 
+**Latent inputs** (``latent_inputs=True``, beyond the paper): in eq. 9–11 ``z`` reaches only the
+heads, so the messages describe the tree built so far without knowing which robot is being built,
+and a one-hidden-layer head must look the next decision up from ``(z, messages)``. With latent
+inputs, every node's GRU input becomes ``x_i^p = W^p x_i + W^{zx} z`` (like the latent fed to
+every step of an RNN decoder): the messages themselves are conditioned on the robot.
+
 Each generated node ``c`` gets (eq. 10–11) ``a = ReLU(W_1^l z + W_2^l h_{p->c})``,
 features ``f_c = U^l a`` and type logits ``U^c a`` (a categorical head over ``num_types``; absent
 when there is a single type). The **root** has no parent message: it is predicted from ``z``
@@ -138,12 +144,13 @@ class TreeDecoder(nn.Module):
         max_depth_embed: depths above this share the last depth embedding.
         max_children_embed: child counts above this share the last count embedding.
         inputs: ``"features"`` (eq. 9–10 as published) or ``"types"`` (module docstring).
+        latent_inputs: add ``W^{zx} z`` to every node's GRU input (module docstring).
     """
 
     def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
                  topo_context: bool = True, type_mask: Tensor | None = None,
                  max_depth_embed: int = 32, max_children_embed: int = 16,
-                 inputs: str = "features") -> None:
+                 inputs: str = "features", latent_inputs: bool = False) -> None:
         super().__init__()
         if inputs not in INPUT_MODES:
             raise ValueError(f"decoder inputs must be one of {INPUT_MODES}, got {inputs!r}")
@@ -151,6 +158,7 @@ class TreeDecoder(nn.Module):
         self.inputs = inputs
         in_dim = feat_dim if inputs == "features" else num_types
         self.proj = nn.Linear(in_dim, hidden_dim, bias=False)
+        self.zin = nn.Linear(latent_dim, hidden_dim, bias=False) if latent_inputs else None
         self.cell = TreeGRUCell(hidden_dim)
         self.topo = TopoHead(in_dim, hidden_dim, latent_dim, topo_context, max_depth_embed,
                              max_children_embed)
@@ -183,12 +191,13 @@ class TreeDecoder(nn.Module):
         Messages are computed level by level (:func:`~robovae.model.tree.level_messages`), then
         every decision of the batch in one call of the topology head. ``messages`` (``(down,
         total, sdown)`` of this decoder's cell, level order, ``[N, H]`` each) skips the message
-        passes when they were already computed (e.g. together with the encoder's).
+        passes when they were already computed (e.g. together with the encoder's; not possible
+        with ``latent_inputs``, where the messages depend on ``z``).
         """
         sched = tree_schedule(batch) if sched is None else sched
         xin = self.node_inputs(batch.x, batch.node_type)
         if messages is None:
-            px = self.project_levels(xin, sched)
+            px = self.project_levels(xin, sched, z)
             messages = tuple(t[0] for t in level_messages([self.cell], px[None], sched, 0))
         down, total, sdown = messages
         node, count, target, which, graph = decision_index(sched)
@@ -199,10 +208,17 @@ class TreeDecoder(nn.Module):
                                       down.index_select(0, sched.inv))
         return DecoderOutput(logits, target, graph, node, feat, types)
 
-    def project_levels(self, x: Tensor, sched: TreeSchedule) -> Tensor:
-        """``cell.project(proj(x))`` with the rows in level order, ``[N, 3H]``; ``x`` is the
-        :meth:`node_inputs` of the batch (node order)."""
-        return self.cell.project(x.index_select(0, sched.order), self.proj.weight)
+    def project_levels(self, x: Tensor, sched: TreeSchedule, z: Tensor | None = None) -> Tensor:
+        """``cell.project(x^p)`` with the rows in level order, ``[N, 3H]``; ``x`` is the
+        :meth:`node_inputs` of the batch (node order), ``z`` (``[B, l]``) is required with
+        ``latent_inputs``."""
+        x = x.index_select(0, sched.order)
+        if self.zin is None:
+            return self.cell.project(x, self.proj.weight)
+        if z is None:
+            raise ValueError("a decoder with latent_inputs needs z to project its inputs")
+        zx = self.zin(z).index_select(0, sched.graph.index_select(0, sched.order))
+        return self.cell.project(self.proj(x) + zx)
 
     forward = teacher_forcing
 
@@ -236,10 +252,11 @@ class TreeDecoder(nn.Module):
         b, dev, hid = z.shape[0], z.device, self.hidden_dim
         buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, z.dtype, dev)
         zl, zt = self.W1_l(z), self.topo.W2(z)
+        zx = self.zin(z) if self.zin is not None else None
         lat = torch.arange(b, device=dev)
         feat, types = self._new_nodes(zl, z.new_zeros(b, hid))
         cur = buf.add(lat, torch.full_like(lat, -1), torch.zeros_like(lat), types, feat,
-                      self._px(feat, types), z.new_zeros(b, hid))
+                      self._px(feat, types, zx), z.new_zeros(b, hid))
         count = torch.ones_like(lat)
         active = count < max_nodes
         for _ in range(2 * max_nodes):
@@ -260,8 +277,8 @@ class TreeDecoder(nn.Module):
             if e.numel():  # expanders create a child and move into it
                 be, pe = act[e], i[e]
                 feat, types = self._new_nodes(zl[be], h[e])
-                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, self._px(feat, types),
-                                  h[e])
+                px = self._px(feat, types, None if zx is None else zx[be])
+                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, px, h[e])
                 buf.nchild[pe] += 1
                 count[be] += 1
             if k.numel():  # backtrackers send their up message and move to their parent
@@ -276,8 +293,9 @@ class TreeDecoder(nn.Module):
             active &= count < max_nodes
         return buf.split(b)
 
-    def _px(self, x: Tensor, node_type: Tensor) -> Tensor:
-        return self.cell.project(self.proj(self.node_inputs(x, node_type)))
+    def _px(self, x: Tensor, node_type: Tensor, zx: Tensor | None = None) -> Tensor:
+        xp = self.proj(self.node_inputs(x, node_type))
+        return self.cell.project(xp if zx is None else xp + zx)
 
     def _new_nodes(self, zl: Tensor, h: Tensor) -> tuple[Tensor, Tensor]:
         feat, logits = self.node_heads(zl, h)

@@ -64,6 +64,9 @@ class RoboVAE(L.LightningModule):
             on the support of the data: a log-scaled mass far outside it would be e^20 kg.
         decoder_inputs: what the decoder reads of each node, ``"features"`` (eq. 9–10) or
             ``"types"`` (one-hot node type; :mod:`robovae.model.decoder`).
+        latent_inputs: the decoder's GRU inputs also receive ``z`` (``x^p = W^p x + W^{zx} z``,
+            :mod:`robovae.model.decoder`); its messages then run after the encoder's instead
+            of in the same stacked pass.
         feature_shift: training-time feature augmentation
             (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
             feature column, in normalised units (0: off).
@@ -97,6 +100,7 @@ class RoboVAE(L.LightningModule):
         feature_noise: float = 0.0,
         augment_until: float = 1.0,
         decoder_inputs: str = "features",
+        latent_inputs: bool = False,
         tree_surgery: float = 0.0,
         surgery_ops: int = 3,
     ) -> None:
@@ -108,7 +112,7 @@ class RoboVAE(L.LightningModule):
         self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
                                    topo_context=topo_context, type_mask=fs.type_mask(),
-                                   inputs=decoder_inputs)
+                                   inputs=decoder_inputs, latent_inputs=latent_inputs)
         self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------
@@ -205,14 +209,20 @@ class RoboVAE(L.LightningModule):
             nb.x = jitter_features(nb.x, nb.x_mask, sched.graph, sched.num_graphs,
                                    hp.feature_shift, hp.feature_noise,
                                    keep=self.normalizer.is_cat, generator=generator)
-        # the decoder's teacher-forced messages do not depend on z: run the encoder's and the
-        # decoder's level passes together (one stacked pass, the same as two separate ones)
+        # unless they read z (latent_inputs), the decoder's teacher-forced messages do not
+        # depend on z: run the encoder's and the decoder's level passes together (one stacked
+        # pass, the same as two separate ones)
         enc, dec = self.encoder, self.decoder
         x = nb.x.index_select(0, sched.order)  # level order
-        xd = dec.node_inputs(x, nb.node_type.index_select(0, sched.order))
-        px = torch.stack([enc.cell.project(x, enc.proj.weight),
-                          dec.cell.project(xd, dec.proj.weight)])
-        down, total, sdown = level_messages([enc.cell, dec.cell], px, sched, num_encoder=1)
+        px = enc.cell.project(x, enc.proj.weight)[None]
+        cells, messages = [enc.cell], None
+        if dec.zin is None:
+            xd = dec.node_inputs(x, nb.node_type.index_select(0, sched.order))
+            px = torch.cat([px, dec.cell.project(xd, dec.proj.weight)[None]])
+            cells.append(dec.cell)
+        down, total, sdown = level_messages(cells, px, sched, num_encoder=1)
+        if dec.zin is None:
+            messages = (down[1], total[1], sdown[1])
         mu, logvar = enc.readout(x, total[0], sched)
         if not sample:
             z = mu
@@ -221,7 +231,7 @@ class RoboVAE(L.LightningModule):
         else:  # the same formula, with this batch's own noise
             eps = torch.randn(mu.shape, generator=generator, dtype=mu.dtype, device=mu.device)
             z = mu + eps * torch.exp(0.5 * logvar)
-        out = dec.teacher_forcing(z, nb, sched, messages=(down[1], total[1], sdown[1]))
+        out = dec.teacher_forcing(z, nb, sched, messages=messages)
         return vae_loss(out, nb, mu, logvar, self.beta_at(self.current_epoch))
 
     def _step(self, batch: Batch, stage: str, batch_idx: int = 0) -> Tensor:

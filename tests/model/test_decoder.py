@@ -113,9 +113,13 @@ def test_decode_rejects_nonfinite() -> None:
         dec.decode(z)
 
 
-def test_decode_matches_teacher_forcing() -> None:
+# (seeds whose random decoder makes trees of many sizes, the precondition asserted below)
+@pytest.mark.parametrize("inputs,latent_inputs,seed",
+                         [("features", False, 2), ("types", False, 1), ("features", True, 0),
+                          ("types", True, 8)])
+def test_decode_matches_teacher_forcing(inputs: str, latent_inputs: bool, seed: int) -> None:
     """Greedy decoding makes exactly the decisions teacher forcing scores on its own output."""
-    dec = make_decoder(seed=2)
+    dec = make_decoder(seed=seed, inputs=inputs, latent_inputs=latent_inputs)
     z = torch.randn(16, 8) * 2
     max_nodes, max_depth = 200, 30
     decoded = dec.decode(z, max_nodes=max_nodes, max_depth=max_depth)
@@ -146,13 +150,15 @@ def test_topo_context_off_is_eq9() -> None:
                                dec.topo.u(h).squeeze(-1))
 
 
-def test_every_parameter_gets_a_gradient() -> None:
+@pytest.mark.parametrize("latent_inputs", [False, True])
+def test_every_parameter_gets_a_gradient(latent_inputs: bool) -> None:
     torch.manual_seed(0)
     rng = random.Random(0)
     batch = Batch.from_data_list([random_tree(rng.randint(1, 25), rng, rng.random())
                                   for _ in range(8)])
     enc = TreeEncoder(FULL.dim, 32, 8)
-    dec = TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask())
+    dec = TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask(),
+                      latent_inputs=latent_inputs)
     mu, logvar = enc(batch)
     losses = vae_loss(dec.teacher_forcing(reparametrize(mu, logvar), batch), batch, mu, logvar,
                       beta=1.0)

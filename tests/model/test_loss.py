@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import random
 
+import pytest
 import torch
 from torch_geometric.data import Batch
 
@@ -12,6 +13,7 @@ from robovae.data.graph import tree_data
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
+from robovae.model.vae import RoboVAE
 
 FULL = get_feature_set("full")
 
@@ -120,3 +122,21 @@ def test_overfit_single_tree() -> None:
     assert parent.tolist() == t.parent.tolist()
     assert types.tolist() == [0] * 15
     assert float(((x - t.x) ** 2).mean()) < 0.05
+
+
+@pytest.mark.parametrize("latent_inputs", [False, True])
+def test_vae_forward_is_encoder_then_decoder(latent_inputs: bool) -> None:
+    """RoboVAE.forward (one stacked message pass, or two when the decoder reads z) gives the
+    loss of the encoder and the decoder called one after the other."""
+    rng = random.Random(3)
+    trees = [random_tree(rng.randint(1, 30), rng, rng.random(), fs="paper34") for _ in range(6)]
+    batch = Batch.from_data_list(trees)
+    torch.manual_seed(0)
+    vae = RoboVAE(hidden_dim=16, latent_dim=4, latent_inputs=latent_inputs).eval()
+    vae.normalizer.fit(batch.x, batch.node_type)
+    assert (vae.decoder.zin is not None) == latent_inputs
+    with torch.no_grad():
+        out = vae(batch, sample=False)
+        ref = losses(vae.encoder, vae.decoder, vae.normalized(batch), beta=vae.beta_at(0))
+    for k in ("loss", "topo", "feat", "type", "kl"):
+        torch.testing.assert_close(out[k], ref[k], atol=1e-5, rtol=1e-5)
