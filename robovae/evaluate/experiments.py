@@ -383,6 +383,16 @@ def per_robot_table(results: list[dict], experiment: str, variant: str = "defaul
     return "\n".join(lines)
 
 
+def last_logged(metrics_csv: str | Path, key: str) -> float:
+    """The last value of ``key`` in a run's CSV log (``nan`` when the file or key is absent)."""
+    path = Path(metrics_csv)
+    if not path.is_file():
+        return math.nan
+    with path.open() as f:
+        values = [row[key] for row in csv.DictReader(f) if row.get(key)]
+    return float(values[-1]) if values else math.nan
+
+
 def loo_table(results: list[dict], variant: str = "default") -> str:
     """Markdown table of the leave-one-out runs: one row per held-out robot."""
     rs = _group(results, experiment="loo", variant=variant)
@@ -415,38 +425,45 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
 
 def loo_compare_table(results: list[dict],
                       variants: Sequence[str] = ("default", "surgery")) -> str:
-    """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true and
+    """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true, the
+    held-out robot's teacher-forced topology loss at the end of training (``val/topo`` of the
+    run's log: the sum of the expansion BCE over its decisions, ``z = mu``, in nats) and the
     decoded node count per held-out robot (mean ± spread over the seeds that every variant has
-    runs of), for the robots that every variant has run with all those seeds, and their mean."""
+    runs of), for the robots that every variant has run with all those seeds, and their mean.
+
+    The topology loss is the smooth counterpart of RA: greedy decoding turns one wrong decision
+    into a wrong subtree, while the loss says how far the model is from the right tree."""
     runs: dict[str, dict[str, dict[int, dict]]] = {}
     for v in variants:
         for r in _group(results, experiment="loo", variant=v):
-            runs.setdefault(v, {}).setdefault(r["test"][0]["name"], {})[r["seed"]] = r["test"][0]
+            t = {**r["test"][0], "topo": last_logged(r.get("metrics_csv", ""), "val/topo")}
+            runs.setdefault(v, {}).setdefault(t["name"], {})[r["seed"]] = t
     variants = [v for v in variants if v in runs]
     seeds = sorted(set.intersection(*({s for ts in runs[v].values() for s in ts}
                                         for v in variants))) if variants else []
     both = [n for n in MENAGERIE17
             if all(n in runs[v] and set(seeds) <= set(runs[v][n]) for v in variants)]
     head = ["held-out robot", "nodes", *(f"RA {v}" for v in variants),
-            *(f"RA_true {v}" for v in variants), "decoded nodes (" + " / ".join(variants) + ")"]
+            *(f"RA_true {v}" for v in variants), *(f"topology loss {v}" for v in variants),
+            "decoded nodes (" + " / ".join(variants) + ")"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     if not seeds:
         return "\n".join(lines)
 
     def cell(key: str, v: str, names: list[str]) -> str:  # per seed: mean over the robots
-        return _pct([statistics.mean(runs[v][n][s][key] for n in names) for s in seeds])
+        per_seed = [statistics.mean(runs[v][n][s][key] for n in names) for s in seeds]
+        return _ms(per_seed, "{:.1f}") if key == "topo" else _pct(per_seed)
+
+    def cells(names: list[str]) -> str:
+        return " | ".join(cell(k, v, names) for k in ("ra", "ra_true", "topo") for v in variants)
 
     for n in both:
-        lines.append(f"| {n} | {runs[variants[0]][n][seeds[0]]['n_true']} | "
-                     + " | ".join(cell("ra", v, [n]) for v in variants) + " | "
-                     + " | ".join(cell("ra_true", v, [n]) for v in variants) + " | "
+        lines.append(f"| {n} | {runs[variants[0]][n][seeds[0]]['n_true']} | {cells([n])} | "
                      + " / ".join(",".join(str(runs[v][n][s]["n_pred"]) for s in seeds)
                                   for v in variants) + " |")
     if both:
-        lines.append(f"| **mean over {len(both)} robots** | | "
-                     + " | ".join(cell("ra", v, both) for v in variants) + " | "
-                     + " | ".join(cell("ra_true", v, both) for v in variants)
-                     + f" | seeds {','.join(map(str, seeds))} (± over seeds) |")
+        lines.append(f"| **mean over {len(both)} robots** | | {cells(both)}"
+                     f" | seeds {','.join(map(str, seeds))} (± over seeds) |")
     return "\n".join(lines)
 
 

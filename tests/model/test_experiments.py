@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -85,17 +86,27 @@ def test_report_fills_the_marked_blocks(tmp_path, monkeypatch):
     assert f"{mean:.1f} ± 0.0 %" in text
 
 
-def test_loo_compare_table_puts_variants_side_by_side():
+def test_loo_compare_table_puts_variants_side_by_side(tmp_path):
     results = [_fake("loo", s, n, 0.5) for s in (0, 1) for n in ex.MENAGERIE17]
     results += [_fake("loo", s, n, 1.0 - 0.5 * s, variant="surgery")
                 for s in (0, 1) for n in ("go2", "z1")]
     results += [_fake("loo", 0, "h1", 1.0, variant="surgery")]  # seed 1 missing: not shown
+    for i, r in enumerate(results):  # the held-out robot's val/topo, last logged value counts
+        if r["variant"] == "surgery" or r["test"][0]["name"] in ("go2", "z1"):
+            log = tmp_path / f"{i}.csv"
+            top = 10.0 if r["variant"] == "default" else 2.0 + r["seed"]
+            log.write_text(f"epoch,train/topo,val/topo\n9,1.0,\n9,,99.0\n19,,{top}\n")
+            r["metrics_csv"] = str(log)
     table = ex.loo_compare_table(results)
-    assert "| RA default | RA surgery |" in table
+    assert "| RA default | RA surgery | RA_true default | RA_true surgery | " \
+           "topology loss default | topology loss surgery |" in table
     assert "| go2 | 26 | 50.0 ± 0.0 % | 75.0 ± 35.4 % | 50.0 ± 0.0 % | 75.0 ± 35.4 % | " \
-           "26,26 / 26,26 |" in table
+           "10.0 ± 0.0 | 2.5 ± 0.7 | 26,26 / 26,26 |" in table
     assert "| h1 |" not in table and "| piper_description |" not in table
     assert "| **mean over 2 robots** | | 50.0 ± 0.0 % | 75.0 ± 35.4 % |" in table
+    assert ex.last_logged(log, "val/topo") == 2.0  # (the last log: h1, surgery, seed 0)
+    assert math.isnan(ex.last_logged(tmp_path / "nope.csv", "val/topo"))
+    assert math.isnan(ex.last_logged(log, "val/RA"))
     assert "seeds 0,1" in table
     assert "| RA default |" in ex.loo_compare_table(results, ("default", "nope"))
     assert ex.loo_compare_table([], ("default",)).count("\n") == 1  # header only
