@@ -89,6 +89,8 @@ ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
     "surgery": ("the configs + tree surgery: half the training robots of every step rebuilt "
                 "by 1-3 random limb edits (drop, duplicate, graft, swap)",
                 ("--model.tree_surgery=0.5",)),
+    "surgery_latent": ("tree surgery + the decoder's GRU inputs read z (``latent_inputs``)",
+                       ("--model.tree_surgery=0.5", "--model.latent_inputs=true")),
     "beta0.01": ("context, no augmentation, beta 0.01 (warm-up 100 epochs) instead of 1e-4",
                  (*_NO_AUG, "--model.beta=0.01", "--model.beta_warmup_epochs=100")),
 }
@@ -424,7 +426,8 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
 
 
 def loo_compare_table(results: list[dict],
-                      variants: Sequence[str] = ("default", "surgery")) -> str:
+                      variants: Sequence[str] = ("default", "surgery", "surgery_latent")
+                      ) -> str:
     """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true, the
     held-out robot's teacher-forced topology loss at the end of training (``val/topo`` of the
     run's log: the sum of the expansion BCE over its decisions, ``z = mu``, in nats) and the
