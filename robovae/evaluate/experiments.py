@@ -426,8 +426,7 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
 
 
 def loo_compare_table(results: list[dict],
-                      variants: Sequence[str] = ("default", "surgery", "surgery_latent")
-                      ) -> str:
+                      variants: Sequence[str] = ("default", "surgery")) -> str:
     """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true, the
     held-out robot's teacher-forced topology loss at the end of training (``val/topo`` of the
     run's log: the sum of the expansion BCE over its decisions, ``z = mu``, in nats) and the
@@ -558,6 +557,8 @@ def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     text = _replace_block(text, "menagerie17", per_robot_table(results, "menagerie17"))
     text = _replace_block(text, "loo", loo_table(results))
     text = _replace_block(text, "loo_compare", loo_compare_table(results))
+    text = _replace_block(text, "loo_compare_latent",
+                          loo_compare_table(results, ("surgery", "surgery_latent")))
     text = _replace_block(text, "ablation", ablation_table(results))
     text = _replace_block(text, "study", study_table(results))
     doc.write_text(text)
