@@ -211,18 +211,16 @@ class RoboVAE(L.LightningModule):
                                    keep=self.normalizer.is_cat, generator=generator)
         # unless they read z (latent_inputs), the decoder's teacher-forced messages do not
         # depend on z: run the encoder's and the decoder's level passes together (one stacked
-        # pass, the same as two separate ones)
+        # pass, the same as two separate ones); otherwise teacher forcing runs its own after z
         enc, dec = self.encoder, self.decoder
+        stacked = dec.zin is None
         x = nb.x.index_select(0, sched.order)  # level order
-        px = enc.cell.project(x, enc.proj.weight)[None]
-        cells, messages = [enc.cell], None
-        if dec.zin is None:
-            xd = dec.node_inputs(x, nb.node_type.index_select(0, sched.order))
-            px = torch.cat([px, dec.cell.project(xd, dec.proj.weight)[None]])
-            cells.append(dec.cell)
-        down, total, sdown = level_messages(cells, px, sched, num_encoder=1)
-        if dec.zin is None:
-            messages = (down[1], total[1], sdown[1])
+        px = [enc.cell.project(x, enc.proj.weight)]
+        if stacked:
+            px.append(dec.project_levels(dec.node_inputs(nb.x, nb.node_type), sched))
+        cells = [enc.cell, dec.cell] if stacked else [enc.cell]
+        down, total, sdown = level_messages(cells, torch.stack(px), sched, num_encoder=1)
+        messages = (down[1], total[1], sdown[1]) if stacked else None
         mu, logvar = enc.readout(x, total[0], sched)
         if not sample:
             z = mu
