@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fnmatch
 from collections.abc import Callable, Sequence
 
 import lightning as L
@@ -14,6 +15,30 @@ from robovae.data.features import Normalizer
 from robovae.data.latents import LatentIndices
 
 
+def select_names(names: Sequence[str], wanted: Sequence[str]) -> list[int]:
+    """Indices of the robots ``wanted`` in ``names``, in the order asked, without repeats.
+
+    An entry with a shell wildcard (``*``, ``?``, ``[``) selects every matching name
+    (:func:`fnmatch.fnmatchcase`, in dataset order); other entries must be names.
+
+    Raises:
+        KeyError: a name not in the dataset, or a pattern matching none.
+    """
+    index = {n: i for i, n in enumerate(names)}
+    out: dict[int, None] = {}
+    for w in wanted:
+        if any(c in w for c in "*?["):
+            hits = [i for i, n in enumerate(names) if fnmatch.fnmatchcase(n, w)]
+        else:
+            hits = [index[w]] if w in index else []
+        if not hits:
+            shown = ", ".join(names[:20]) + (f", … ({len(names)} robots)" if len(names) > 20
+                                              else "")
+            raise KeyError(f"robovae: no robot named {w!r} in the dataset (have: {shown})")
+        out.update(dict.fromkeys(hits))
+    return list(out)
+
+
 class RobotDataModule(L.LightningDataModule):
     """Robot graphs for training, with splits by robot name or by fraction.
 
@@ -21,7 +46,8 @@ class RobotDataModule(L.LightningDataModule):
         sources: source strings (``zoo``, ``menagerie:go2``, ``dir:PATH``, ``synthetic:...``).
         feature_set: ``paper34`` or ``full`` (synthetic sources force ``random<d>``).
         root: cache folder of the processed dataset.
-        train_names: robots to train on (default: all not in val/test).
+        train_names: robots to train on (default: all not in val/test). Names may be shell
+            patterns (``proc_*``, :func:`fnmatch.fnmatchcase`), in all three name lists.
         val_names: robots held out for validation, by name. When ``val_names`` and
             ``test_names`` are both empty the split is by fraction (seeded shuffle).
         test_names: robots held out for testing, by name.
@@ -73,16 +99,10 @@ class RobotDataModule(L.LightningDataModule):
 
     def _split(self, names: list[str]) -> tuple[list[int], list[int], list[int]]:
         hp = self.hparams
-        index = {n: i for i, n in enumerate(names)}
-        for n in [*hp.train_names, *hp.val_names, *hp.test_names]:
-            if n not in index:
-                raise KeyError(f"robovae: no robot named {n!r} in the dataset "
-                               f"(have: {', '.join(names)})")
         if hp.val_names or hp.test_names or hp.train_names:
-            val = [index[n] for n in hp.val_names]
-            test = [index[n] for n in hp.test_names]
+            val, test = select_names(names, hp.val_names), select_names(names, hp.test_names)
             held = set(val) | set(test)
-            train = ([index[n] for n in hp.train_names] if hp.train_names
+            train = (select_names(names, hp.train_names) if hp.train_names
                      else [i for i in range(len(names)) if i not in held])
         else:
             g = torch.Generator().manual_seed(hp.seed)

@@ -8,7 +8,7 @@ import shutil
 import pytest
 import torch
 
-from robovae.data.datamodule import RobotDataModule
+from robovae.data.datamodule import RobotDataModule, select_names
 from robovae.data.dataset import RobotDataset
 from robovae.data.graph import describe
 
@@ -79,6 +79,16 @@ def test_datamodule_split_by_name_fits_normalizer_on_train(cache_root, menagerie
     assert abs(float(y[t == 0, link_mass].mean())) < 1e-5  # standardised on train only
     batch = next(iter(dm.train_dataloader()))
     assert batch.num_graphs == 2 and batch.x.shape[1] == 34
+
+
+def test_select_names_patterns_keep_order_without_repeats():
+    names = ["go1", "go2", "a1", "proc_quadruped_00000", "proc_hexapod_00001"]
+    assert select_names(names, ["a1", "proc_*", "a1", "go?"]) == [2, 3, 4, 0, 1]
+    assert select_names(names, ["proc_[hq]*00001"]) == [4]
+    with pytest.raises(KeyError, match="'nobot'"):
+        select_names(names, ["go1", "nobot"])
+    with pytest.raises(KeyError, match="'tiago_\\*'"):
+        select_names(names, ["tiago_*"])
 
 
 def test_datamodule_split_by_fraction(cache_root):

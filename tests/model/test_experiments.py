@@ -120,6 +120,26 @@ def test_loo_specs_hold_out_one_robot():
     assert specs[2].out == Path("r/loo/default/barkour_v0/seed0")
 
 
+def test_procedural_variant_adds_procedural_robots_to_the_training_split(tmp_path, menagerie_dir,
+                                                                      cache_root):
+    """``surgery_procedural``: its ``--data.train_names+=proc_*`` appends to the names the
+    leave-one-out runner sets, so the held-out robot stays out and the procedural robots go in
+    (here 3 of them instead of the variant's 100, to stay fast)."""
+    (spec,) = ex.loo_specs([0], robots=["z1"], variant="surgery_procedural",
+                           extra=[*ex.ABLATIONS["surgery_procedural"][1],
+                                  f"--data.root={tmp_path / 'cache'}",
+                                  f'--data.sources=["dir:{menagerie_dir}",'
+                                  '"procedural:n=3,seed=0"]',
+                                  "--model.hidden_dim=16", "--model.latent_dim=4"],
+                           epochs=1, root=tmp_path)
+    result = ex.run_one(spec)
+    train = result["train_names"]
+    assert len(train) == 19 and "z1" not in train
+    assert sorted(n for n in train if n.startswith("proc_")) == \
+        ["proc_hexapod_00001", "proc_humanoid_00002", "proc_quadruped_00000"]
+    assert result["test"][0]["name"] == "z1" and result["hparams"]["tree_surgery"] == 0.5
+
+
 def test_study_table_reads_each_runs_resolved_config(tmp_path):
     """The study rows show the settings a run was trained with (its config.yaml), not the
     current config file."""
