@@ -55,14 +55,11 @@ def random_tree(rng: np.random.Generator, fs_name: str, n: int) -> RobotData:
     return tree_data(parent, types.tolist(), x, fs)
 
 
-@pytest.fixture(scope="session")
-def trained(tmp_path_factory):
-    """A small model trained a few epochs on the zoo, with its datamodule and checkpoint."""
-    tmp = tmp_path_factory.mktemp("zoo")
+def _train_small(tmp, **model_kw):
     L.seed_everything(0)
     dm = RobotDataModule(["zoo"], root=str(tmp / "cache"),
                          test_names=["gym_half_cheetah", "gym_hopper"], batch_size=8)
-    model = RoboVAE(hidden_dim=32, latent_dim=8, max_nodes=64)
+    model = RoboVAE(hidden_dim=32, latent_dim=8, max_nodes=64, **model_kw)
     trainer = L.Trainer(max_epochs=2, accelerator="cpu", devices=1, logger=False,
                         enable_checkpointing=False, enable_progress_bar=False,
                         enable_model_summary=False, default_root_dir=tmp,
@@ -71,3 +68,16 @@ def trained(tmp_path_factory):
     ckpt = tmp / "model.ckpt"
     trainer.save_checkpoint(ckpt)
     return model.eval(), dm, ckpt
+
+
+@pytest.fixture(scope="session")
+def trained(tmp_path_factory):
+    """A small model trained a few epochs on the zoo, with its datamodule and checkpoint."""
+    return _train_small(tmp_path_factory.mktemp("zoo"))
+
+
+@pytest.fixture(scope="session")
+def trained_nodes(tmp_path_factory):
+    """The same with node latents and local heads (the configs' model)."""
+    return _train_small(tmp_path_factory.mktemp("zoo_nodes"), node_latent_dim=6,
+                        local_heads=True, decoder_inputs="types")

@@ -2,8 +2,11 @@
 
 For robots ``a`` and ``b`` with encoded means ``mu_a``, ``mu_b`` (the encoder's ``q(z | G)``
 means), step ``k`` of ``n`` decodes ``z_k = (1 - t_k) mu_a + t_k mu_b`` with ``t_k = k / (n - 1)``
-greedily, applies the generation rules (a root joint becomes a floating base, as in
-``robovae generate``), writes ``step_<k>/robot.xml`` and validates it in MuJoCo
+greedily. With node latents, the nodes' latent means are interpolated the same way, node by
+node in pre-order, the shorter robot's list padded with the other's tail:
+``w_k[i] = (1 - t_k) w_a[i] + t_k w_b[i]``; so the two ends are exactly the robots'
+reconstructions. Every step then gets the generation rules (a root joint becomes a floating
+base, as in ``robovae generate``), writes ``step_<k>/robot.xml`` and validates it in MuJoCo
 (:func:`~robovae.generate.validate.validate_robot`): the paper's §6.2 question of whether the
 space between two designs holds usable robots.
 """
@@ -36,22 +39,29 @@ class Step:
 
 @torch.no_grad()
 def latent_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11
-                ) -> tuple[np.ndarray, torch.Tensor]:
-    """``(t, z)``: ``steps`` evenly spaced ``t`` in [0, 1] and ``z_t = (1 - t) mu_a + t mu_b``."""
+                ) -> tuple[np.ndarray, torch.Tensor, list[torch.Tensor] | None]:
+    """``(t, z, w)``: ``steps`` evenly spaced ``t`` in [0, 1], ``z_t = (1 - t) mu_a + t mu_b``
+    and, for a model with node latents, each step's node latents (module docstring; ``None``
+    otherwise)."""
     if steps < 2:
         raise ValueError(f"an interpolation needs at least 2 steps, got {steps}")
-    mu, _ = model.encode(Batch.from_data_list([a, b]))
+    mu, (wa, wb) = model.encode_nodes(Batch.from_data_list([a, b]))
     t = np.linspace(0.0, 1.0, steps)
     tt = torch.as_tensor(t, dtype=mu.dtype, device=mu.device)[:, None]
-    return t, (1 - tt) * mu[0] + tt * mu[1]
+    z = (1 - tt) * mu[0] + tt * mu[1]
+    if not model.hparams.get("node_latent_dim"):
+        return t, z, None
+    na, nb = wa.shape[0], wb.shape[0]
+    wa, wb = torch.cat([wa, wb[na:]]), torch.cat([wb, wa[nb:]])  # both max(na, nb) long
+    return t, z, [(1 - tk) * wa + tk * wb for tk in tt[:, :, None]]
 
 
 def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
                 out: str | Path | None = None, validate: bool = True) -> list[Step]:
     """Decode the latent path from ``a`` to ``b``; with ``out``, write each step's MJCF under
     ``out/step_<k>/`` and (``validate``) simulate it (see the module docstring)."""
-    t, z = latent_path(model, a, b, steps)
-    graphs = model.decode(z)
+    t, z, w = latent_path(model, a, b, steps)
+    graphs = model.decode(z, node_latents=w, clamp=w is None)
     result = []
     for k, (tk, g) in enumerate(zip(t.tolist(), graphs)):
         g, _ = floating_base(g, model.feature_set)

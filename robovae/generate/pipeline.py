@@ -94,6 +94,29 @@ def latent(seed: int, index: int, dim: int, temperature: float = 1.0) -> torch.T
     return torch.from_numpy(rng.standard_normal(dim).astype(np.float32)) * temperature
 
 
+def node_noise(seed: int, index: int, max_nodes: int, dim: int,
+               temperature: float = 1.0) -> torch.Tensor:
+    """The node-latent noise of robot ``index`` (models with node latents): ``[max_nodes, dim]``
+    standard normals times ``T`` from the robot's own second stream (``(seed, index, 1)``), so
+    its node ``t`` draws ``w_t = mu^p + sigma^p eps_t`` whatever the batch."""
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, index, 1])))
+    eps = rng.standard_normal((max_nodes, dim)).astype(np.float32)
+    return torch.from_numpy(eps) * temperature
+
+
+def prior_latents(model: RoboVAE, seed: int, indices: Sequence[int],
+                  temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """``(z, node_noise)`` of robots ``indices``: :func:`latent` and, for a model with node
+    latents, :func:`node_noise` (``None`` otherwise), in the model's dtype; the two arguments of
+    :meth:`RoboVAE.decode <robovae.model.vae.RoboVAE.decode>` for ancestral sampling."""
+    hp = model.hparams
+    z = torch.stack([latent(seed, int(i), hp.latent_dim, temperature) for i in indices])
+    dw = hp.get("node_latent_dim", 0)
+    noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, dw, temperature)
+                         for i in indices]).to(model.dtype) if dw else None
+    return z.to(model.dtype), noise
+
+
 def read_manifest(out: Path) -> dict[int, dict]:
     """Manifest records by robot index (a torn last line from a crash is ignored)."""
     records: dict[int, dict] = {}
@@ -185,7 +208,6 @@ def generate(
     model = model.to(torch.float64)
     done = read_manifest(out)
     todo = [i for i in range(n) if i not in done]
-    dim = model.hparams.latent_dim
     from tqdm.auto import tqdm
 
     bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
@@ -194,8 +216,9 @@ def generate(
     with _open_manifest(out / MANIFEST) as manifest, \
             (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
         for chunk in _chunks(todo, batch_size):
-            z = torch.stack([latent(seed, i, dim, temperature) for i in chunk])
-            records = write_records(model, chunk, z, model.decode(z), out, seed=seed,
+            z, noise = prior_latents(model, seed, chunk, temperature)
+            records = write_records(model, chunk, z, model.decode(z, node_noise=noise), out,
+                                    seed=seed,
                                     temperature=temperature, validate=validate, jobs=jobs,
                                     scene=scene, floating=floating, pool=pool)
             append_records(manifest, records)

@@ -37,10 +37,36 @@ Each generated node ``c`` gets (eq. 10–11) ``a = ReLU(W_1^l z + W_2^l h_{p->c}
 features ``f_c = U^l a`` and type logits ``U^c a`` (a categorical head over ``num_types``; absent
 when there is a single type). The **root** has no parent message: it is predicted from ``z``
 alone (``h = 0``).
+
+**Node latents** (``node_latent_dim > 0``, beyond the paper): node ``c`` carries a local latent
+``w_c`` (:class:`~robovae.model.encoder.TreeEncoder` gives its posterior, which knows the node's
+type and number of children). It enters the heads of the node itself: eq. 10–11 become
+``a = ReLU(W_1^l z + W_2^l h_{p->c} + W_3^l w_c)``, ``f_c = U^l a + V^l w_c``,
+``s_c = U^c a + V^c w_c`` (the linear paths let a value outside the training range move the
+reconstruction linearly instead of saturating a ReLU), and eq. 9 gets ``+ W_4^c w_i`` for the
+decisions taken at node ``i``. With **local heads** (``local_heads=True``) a node's type and its
+expand/backtrack decisions read *only* its own latent and the depth/child-count context:
+
+.. math:: s_c = V^c w_c + b^c, \\qquad
+          p_t = \\sigma(u^c \\cdot \\tau(W_4^c w_i + b + E_{depth}(d_i) + E_{count}(k) + k\\,c))
+
+so that what a node *is* can never be overruled by what its context usually implies (a welded
+link under a link, a base with more limbs than any training robot): the structure of an unseen
+robot is then decoded from its node latents alone. The context still shapes generation, through
+the learned conditional prior of the node latents (a sequential VAE's):
+
+.. math:: p(w_c \\mid z, h_{p \\to c}, w_p) = \\mathcal N(\\mu^p, \\mathrm{diag}\\, e^{\\lambda^p}),
+          \\quad [\\mu^p, \\lambda^p] = U^p \\tau(W_1^p z + W_2^p h_{p \\to c} + W_3^p w_p)
+
+(``w_p = 0``, ``h = 0`` at the root; ``lambda^p`` soft-clamped to ``(-10, 10)``). The messages
+do not read ``w``, so the encoder's and the decoder's level passes still run stacked.
+Reconstruction feeds the encoder's ``w`` in pre-order; generation draws every new node's ``w``
+from this prior (ancestral sampling with the caller's noise, or its mean without).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
@@ -54,6 +80,13 @@ from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_s
 INPUT_MODES = ("features", "types")
 
 
+def soft_clamp(logvar: Tensor, bound: float = 10.0) -> Tensor:
+    """``bound * tanh(logvar / bound)``: a node latent's log-variance kept inside
+    ``(-bound, bound)`` smoothly, so that neither ``e^{lambda^q}`` nor ``e^{-lambda^p}`` in the node
+    KL can overflow (a run once spiked to a loss of 1e20 without it)."""
+    return bound * torch.tanh(logvar / bound)
+
+
 @dataclass
 class DecoderOutput:
     """Teacher-forcing predictions for a batch.
@@ -65,6 +98,8 @@ class DecoderOutput:
         topo_graph: ``[T]`` graph index of each decision; ``topo_node``: ``[T]`` deciding node.
         feat_pred: ``[N, d]`` predicted (normalised) features, batch node order.
         type_logits: ``[N, num_types]`` (zeros when ``num_types == 1``).
+        prior_mu, prior_logvar: ``[N, node_latent_dim]`` the node latents' conditional prior
+            (``None`` without node latents).
     """
 
     topo_logits: Tensor
@@ -73,30 +108,54 @@ class DecoderOutput:
     topo_node: Tensor
     feat_pred: Tensor
     type_logits: Tensor
+    prior_mu: Tensor | None = None
+    prior_logvar: Tensor | None = None
 
 
 class TopoHead(nn.Module):
-    """Expansion logit (eq. 9), optionally with depth / child-count context."""
+    """Expansion logit (eq. 9), optionally with depth / child-count context and the deciding
+    node's latent; ``local`` keeps only the latent and the context embeddings (no ``x``, ``z``
+    or messages: module docstring of :mod:`robovae.model.decoder`)."""
 
     def __init__(self, feat_dim: int, hidden_dim: int, latent_dim: int, context: bool,
-                 max_depth_embed: int, max_children_embed: int) -> None:
+                 max_depth_embed: int, max_children_embed: int, node_latent_dim: int = 0,
+                 local: bool = False) -> None:
         super().__init__()
-        self.W1 = nn.Linear(feat_dim, hidden_dim)
-        self.W2 = nn.Linear(latent_dim, hidden_dim, bias=False)
-        self.W3 = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        if local and not (node_latent_dim and context):
+            raise ValueError("local heads need node latents and the depth/count context")
+        self.local = local
+        if not local:
+            self.W1 = nn.Linear(feat_dim, hidden_dim)
+            self.W2 = nn.Linear(latent_dim, hidden_dim, bias=False)
+            self.W3 = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        self.W4 = nn.Linear(node_latent_dim, hidden_dim, bias=local) if node_latent_dim \
+            else None
         self.u = nn.Linear(hidden_dim, 1)
         self.context = context
         if context:
             self.depth_emb = nn.Embedding(max_depth_embed + 1, hidden_dim)
             self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
+        # local heads: the count also enters linearly, so that "expand while k < K_i" holds
+        # for counts beyond the training robots' (see TreeEncoder's node latents)
+        self.count_vec = nn.Parameter(torch.zeros(hidden_dim)) if local else None
 
-    def forward(self, x: Tensor, zw: Tensor, inward: Tensor, depth: Tensor,
-                count: Tensor) -> Tensor:
-        """Logits ``[M]``; ``zw`` is ``W2 z`` already gathered per decision."""
-        a = self.W1(x) + zw + self.W3(inward)
+    def zterm(self, z: Tensor) -> Tensor | None:
+        """``W2 z`` per latent (``None`` for a local head)."""
+        return None if self.local else self.W2(z)
+
+    def forward(self, x: Tensor | None, zw: Tensor | None, inward: Tensor | None, depth: Tensor,
+                count: Tensor, w: Tensor | None = None) -> Tensor:
+        """Logits ``[M]``; ``zw`` is :meth:`zterm` already gathered per decision, ``w`` the
+        deciding nodes' latents (with node latents). A local head ignores ``x``, ``zw`` and
+        ``inward``."""
+        a = self.W4(w) if self.local else self.W1(x) + zw + self.W3(inward)
+        if self.W4 is not None and not self.local:
+            a = a + self.W4(w)
         if self.context:
             a = a + self.depth_emb(depth.clamp_max(self.depth_emb.num_embeddings - 1))
             a = a + self.count_emb(count.clamp_max(self.count_emb.num_embeddings - 1))
+        if self.count_vec is not None:
+            a = a + count[:, None].to(a.dtype) * self.count_vec
         return self.u(torch.relu(a)).squeeze(-1)
 
 
@@ -145,12 +204,16 @@ class TreeDecoder(nn.Module):
         max_children_embed: child counts above this share the last count embedding.
         inputs: ``"features"`` (eq. 9–10 as published) or ``"types"`` (module docstring).
         latent_inputs: add ``W^{zx} z`` to every node's GRU input (module docstring).
+        node_latent_dim: width of the node latents ``w`` (0: none; module docstring).
+        local_heads: with node latents, the type and the topology decisions of a node read
+            only its latent (and the child-count/depth context), not ``z`` or the messages.
     """
 
     def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
                  topo_context: bool = True, type_mask: Tensor | None = None,
                  max_depth_embed: int = 32, max_children_embed: int = 16,
-                 inputs: str = "features", latent_inputs: bool = False) -> None:
+                 inputs: str = "features", latent_inputs: bool = False,
+                 node_latent_dim: int = 0, local_heads: bool = False) -> None:
         super().__init__()
         if inputs not in INPUT_MODES:
             raise ValueError(f"decoder inputs must be one of {INPUT_MODES}, got {inputs!r}")
@@ -161,11 +224,23 @@ class TreeDecoder(nn.Module):
         self.zin = nn.Linear(latent_dim, hidden_dim, bias=False) if latent_inputs else None
         self.cell = TreeGRUCell(hidden_dim)
         self.topo = TopoHead(in_dim, hidden_dim, latent_dim, topo_context, max_depth_embed,
-                             max_children_embed)
+                             max_children_embed, node_latent_dim, local_heads)
+        self.local_heads = local_heads
         self.W1_l = nn.Linear(latent_dim, hidden_dim)
         self.W2_l = nn.Linear(hidden_dim, hidden_dim, bias=False)
         self.U_l = nn.Linear(hidden_dim, feat_dim)
-        self.U_c = nn.Linear(hidden_dim, num_types) if num_types > 1 else None
+        self.U_c = nn.Linear(hidden_dim, num_types) if num_types > 1 and not local_heads \
+            else None
+        self.node_latent_dim = node_latent_dim
+        if node_latent_dim:
+            self.W3_l = nn.Linear(node_latent_dim, hidden_dim, bias=False)
+            self.V_l = nn.Linear(node_latent_dim, feat_dim, bias=False)
+            self.V_c = nn.Linear(node_latent_dim, num_types, bias=local_heads) \
+                if num_types > 1 else None
+            self.W1_p = nn.Linear(latent_dim, hidden_dim)
+            self.W2_p = nn.Linear(hidden_dim, hidden_dim, bias=False)
+            self.W3_p = nn.Linear(node_latent_dim, hidden_dim, bias=False)
+            self.U_p = nn.Linear(hidden_dim, 2 * node_latent_dim)
         mask = torch.ones(num_types, feat_dim, dtype=torch.bool) if type_mask is None else type_mask
         self.register_buffer("type_mask", mask.bool().clone(), persistent=False)
 
@@ -175,18 +250,36 @@ class TreeDecoder(nn.Module):
             return x
         return F.one_hot(node_type, self.num_types).to(x.dtype)
 
-    def node_heads(self, zl: Tensor, h: Tensor) -> tuple[Tensor, Tensor]:
-        """eq. 10–11: ``(features, type logits)`` from ``zl = W_1^l z`` and ``h = h_{p->c}``."""
-        a = torch.relu(zl + self.W2_l(h))
-        if self.U_c is None:
-            return self.U_l(a), a.new_zeros(a.shape[0], 1)
-        return self.U_l(a), self.U_c(a)
+    def node_heads(self, zl: Tensor, h: Tensor, w: Tensor | None = None) -> tuple[Tensor, Tensor]:
+        """eq. 10–11: ``(features, type logits)`` from ``zl = W_1^l z``, ``h = h_{p->c}`` and
+        (with node latents) the node's own latent ``w``."""
+        a = zl + self.W2_l(h)
+        if self.node_latent_dim:
+            a = a + self.W3_l(w)
+        a = torch.relu(a)
+        if self.num_types == 1:
+            types = a.new_zeros(a.shape[0], 1)
+        elif self.local_heads:
+            types = self.V_c(w)
+        else:
+            types = self.U_c(a) + self.V_c(w) if self.node_latent_dim else self.U_c(a)
+        feat = self.U_l(a) + self.V_l(w) if self.node_latent_dim else self.U_l(a)
+        return feat, types
+
+    def node_prior(self, zp: Tensor, h: Tensor, w_parent: Tensor) -> tuple[Tensor, Tensor]:
+        """``(mu^p, logvar^p)`` of the node latents' prior (module docstring) from
+        ``zp = W_1^p z``, the parent's message ``h`` and the parent's latent."""
+        a = torch.relu(zp + self.W2_p(h) + self.W3_p(w_parent))
+        mu, logvar = self.U_p(a).chunk(2, -1)
+        return mu, soft_clamp(logvar)
 
     # --- teacher forcing ----------------------------------------------------------------
 
     def teacher_forcing(self, z: Tensor, batch: Data, sched: TreeSchedule | None = None,
-                        messages: tuple[Tensor, Tensor, Tensor] | None = None) -> DecoderOutput:
-        """All predictions of the DFS trace of ``batch`` (normalised ``x``) given ``z`` ``[B, l]``.
+                        messages: tuple[Tensor, Tensor, Tensor] | None = None,
+                        w: Tensor | None = None) -> DecoderOutput:
+        """All predictions of the DFS trace of ``batch`` (normalised ``x``) given ``z`` ``[B, l]``
+        (and, with node latents, ``w`` ``[N, node_latent_dim]`` in node order).
 
         Messages are computed level by level (:func:`~robovae.model.tree.level_messages`), then
         every decision of the batch in one call of the topology head. ``messages`` (``(down,
@@ -194,6 +287,8 @@ class TreeDecoder(nn.Module):
         passes when they were already computed (e.g. together with the encoder's; not possible
         with ``latent_inputs``, where the messages depend on ``z``).
         """
+        if self.node_latent_dim and w is None:
+            raise ValueError("a decoder with node latents needs w for teacher forcing")
         sched = tree_schedule(batch) if sched is None else sched
         xin = self.node_inputs(batch.x, batch.node_type)
         if messages is None:
@@ -202,11 +297,20 @@ class TreeDecoder(nn.Module):
         down, total, sdown = messages
         node, count, target, which, graph = decision_index(sched)
         inward_t = torch.cat([sdown, total]).index_select(0, which)
-        logits = self.topo(xin.index_select(0, node), self.topo.W2(z).index_select(0, graph),
-                           inward_t, sched.depth.index_select(0, node), count)
-        feat, types = self.node_heads(self.W1_l(z).index_select(0, sched.graph),
-                                      down.index_select(0, sched.inv))
-        return DecoderOutput(logits, target, graph, node, feat, types)
+        w = w if self.node_latent_dim else None
+        local = self.topo.local
+        logits = self.topo(None if local else xin.index_select(0, node),
+                           None if local else self.topo.zterm(z).index_select(0, graph),
+                           None if local else inward_t, sched.depth.index_select(0, node), count,
+                           None if w is None else w.index_select(0, node))
+        h = down.index_select(0, sched.inv)
+        feat, types = self.node_heads(self.W1_l(z).index_select(0, sched.graph), h, w)
+        if w is None:
+            return DecoderOutput(logits, target, graph, node, feat, types)
+        w_par = torch.where((sched.parent >= 0)[:, None],
+                            w.index_select(0, sched.parent.clamp_min(0)), 0.0)
+        pmu, plogvar = self.node_prior(self.W1_p(z).index_select(0, sched.graph), h, w_par)
+        return DecoderOutput(logits, target, graph, node, feat, types, pmu, plogvar)
 
     def project_levels(self, x: Tensor, sched: TreeSchedule, z: Tensor | None = None) -> Tensor:
         """``cell.project(x^p)`` with the rows in level order, ``[N, 3H]``; ``x`` is the
@@ -225,8 +329,9 @@ class TreeDecoder(nn.Module):
     # --- greedy decoding ----------------------------------------------------------------
 
     @torch.no_grad()
-    def decode(self, z: Tensor, max_nodes: int = 256,
-               max_depth: int = 64) -> list[tuple[Tensor, Tensor, Tensor]]:
+    def decode(self, z: Tensor, max_nodes: int = 256, max_depth: int = 64,
+               node_latents: Sequence[Tensor] | None = None,
+               node_noise: Tensor | None = None) -> list[tuple[Tensor, Tensor, Tensor]]:
         """Greedy autoregressive decoding of ``z`` ``[B, l]`` (or ``[l]``), batched over latents.
 
         Every active latent advances one DFS step per iteration (one GRU call for all): expand
@@ -234,6 +339,12 @@ class TreeDecoder(nn.Module):
         would be at most ``max_depth``), else backtrack; a tree is finished when its root
         backtracks or it reaches ``max_nodes``. Each tree takes at most ``2 * max_nodes - 1``
         steps, so decoding always terminates. Node types are ``argmax`` of the type logits.
+
+        With node latents, the ``t``-th node created for latent ``b`` (pre-order) takes
+        ``node_latents[b][t]`` when given (reconstruction: the encoder's node means), else a
+        draw from its conditional prior, ``mu^p + sigma^p * node_noise[b, t]`` (ancestral
+        sampling; ``node_noise`` is ``[B, >= max_nodes, node_latent_dim]``, already scaled by
+        the sampling temperature), or the prior mean ``mu^p`` without ``node_noise``.
 
         Returns:
             per latent ``(parent, node_type, x)``: pre-order parent vector (root -1), types and
@@ -250,13 +361,17 @@ class TreeDecoder(nn.Module):
         if max_nodes < 1 or max_depth < 0:
             raise ValueError("max_nodes must be >= 1 and max_depth >= 0")
         b, dev, hid = z.shape[0], z.device, self.hidden_dim
-        buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, z.dtype, dev)
-        zl, zt = self.W1_l(z), self.topo.W2(z)
+        buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, self.node_latent_dim,
+                          z.dtype, dev)
+        zl, zt = self.W1_l(z), self.topo.zterm(z)
         zx = self.zin(z) if self.zin is not None else None
         lat = torch.arange(b, device=dev)
-        feat, types = self._new_nodes(zl, z.new_zeros(b, hid))
+        wsrc = _NodeLatents(self, z, node_latents, node_noise, max_nodes)
+        h0 = z.new_zeros(b, hid)
+        w = wsrc.take(lat, torch.zeros_like(lat), h0, z.new_zeros(b, self.node_latent_dim))
+        feat, types = self._new_nodes(zl, h0, w)
         cur = buf.add(lat, torch.full_like(lat, -1), torch.zeros_like(lat), types, feat,
-                      self._px(feat, types, zx), z.new_zeros(b, hid))
+                      self._px(feat, types, zx), h0, w)
         count = torch.ones_like(lat)
         active = count < max_nodes
         for _ in range(2 * max_nodes):
@@ -265,8 +380,10 @@ class TreeDecoder(nn.Module):
                 break
             i = cur[act]
             inward = buf.down[i] + buf.csum[i]
-            logit = self.topo(self.node_inputs(buf.x[i], buf.type[i]), zt[act], inward,
-                              buf.depth[i], buf.nchild[i])
+            local = self.topo.local
+            logit = self.topo(None if local else self.node_inputs(buf.x[i], buf.type[i]),
+                              None if local else zt[act], None if local else inward,
+                              buf.depth[i], buf.nchild[i], buf.w[i])
             expand = (logit > 0) & (buf.depth[i] < max_depth)
             pxi = buf.px[i]
             s = torch.where(expand[:, None], inward, buf.csum[i])
@@ -275,10 +392,11 @@ class TreeDecoder(nn.Module):
             h = self.cell.step(pxi, s, g)
             e, k = expand.nonzero().flatten(), (~expand).nonzero().flatten()
             if e.numel():  # expanders create a child and move into it
-                be, pe = act[e], i[e]
-                feat, types = self._new_nodes(zl[be], h[e])
+                be, pe, he = act[e], i[e], h[e]
+                w = wsrc.take(be, count[be], he, buf.w[pe])
+                feat, types = self._new_nodes(zl[be], he, w)
                 px = self._px(feat, types, None if zx is None else zx[be])
-                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, px, h[e])
+                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, px, he, w)
                 buf.nchild[pe] += 1
                 count[be] += 1
             if k.numel():  # backtrackers send their up message and move to their parent
@@ -297,16 +415,60 @@ class TreeDecoder(nn.Module):
         xp = self.proj(self.node_inputs(x, node_type))
         return self.cell.project(xp if zx is None else xp + zx)
 
-    def _new_nodes(self, zl: Tensor, h: Tensor) -> tuple[Tensor, Tensor]:
-        feat, logits = self.node_heads(zl, h)
+    def _new_nodes(self, zl: Tensor, h: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:
+        feat, logits = self.node_heads(zl, h, w)
         types = logits.argmax(-1)
         return torch.where(self.type_mask[types], feat, torch.zeros_like(feat)), types
+
+
+class _NodeLatents:
+    """Where greedy decoding takes each new node's latent ``w`` from: the given latents of the
+    latent's robot while they last (pre-order index ``t``), else the conditional prior."""
+
+    def __init__(self, dec: TreeDecoder, z: Tensor, given: Sequence[Tensor] | None,
+                 noise: Tensor | None, max_nodes: int) -> None:
+        self.dec, self.dim = dec, dec.node_latent_dim
+        b = z.shape[0]
+        if given is not None and len(given) != b:
+            raise ValueError(f"node_latents: {len(given)} robots for {b} latents")
+        if (given is not None or noise is not None) and not self.dim:
+            raise ValueError("node latents given, but the decoder has no node latents")
+        if noise is not None and (noise.dim() != 3 or noise.shape[0] != b
+                                  or noise.shape[1] < max_nodes or noise.shape[2] != self.dim):
+            raise ValueError(f"node_noise must be [{b}, >= {max_nodes}, {self.dim}], "
+                             f"got {list(noise.shape)}")
+        self.noise = None if noise is None else noise.to(z)
+        self.zp = dec.W1_p(z) if self.dim else None
+        given = list(given) if given is not None else []
+        for k, g in enumerate(given):
+            if g.dim() != 2 or g.shape[1] != self.dim:
+                raise ValueError(f"node_latents[{k}] must be [n, {self.dim}], "
+                                 f"got {list(g.shape)}")
+        lens = [int(g.shape[0]) for g in given] or [0] * b
+        self.lens = torch.tensor(lens, dtype=torch.long, device=z.device)
+        self.table = z.new_zeros(b, max(lens, default=0), self.dim)
+        for k, g in enumerate(given):
+            self.table[k, :g.shape[0]] = g.to(z)
+
+    def take(self, rows: Tensor, t: Tensor, h: Tensor, w_parent: Tensor) -> Tensor:
+        """Latents of the new nodes number ``t`` of latents ``rows`` (parent message ``h``)."""
+        if not self.dim:
+            return h.new_zeros(rows.numel(), 0)
+        mu, logvar = self.dec.node_prior(self.zp[rows], h, w_parent)
+        w = mu
+        if self.noise is not None:
+            w = mu + torch.exp(0.5 * logvar) * self.noise[rows, t]
+        have = t < self.lens[rows]
+        if bool(have.any()):
+            tt = t.clamp_max(max(self.table.shape[1] - 1, 0))
+            w = torch.where(have[:, None], self.table[rows, tt], w)
+        return w
 
 
 class _NodeBuffer:
     """Growable flat storage of the nodes being decoded (all latents interleaved)."""
 
-    def __init__(self, cap: int, d: int, hid: int, dtype: torch.dtype,
+    def __init__(self, cap: int, d: int, hid: int, dw: int, dtype: torch.dtype,
                  dev: torch.device) -> None:
         self.n = 0
         long = {"dtype": torch.long, "device": dev}
@@ -314,14 +476,15 @@ class _NodeBuffer:
         self.owner, self.parent = torch.zeros(cap, **long), torch.zeros(cap, **long)
         self.depth, self.type = torch.zeros(cap, **long), torch.zeros(cap, **long)
         self.nchild = torch.zeros(cap, **long)
-        self.x = torch.zeros(cap, d, **flt)
+        self.x, self.w = torch.zeros(cap, d, **flt), torch.zeros(cap, dw, **flt)
         self.px, self.down = torch.zeros(cap, 3 * hid, **flt), torch.zeros(cap, hid, **flt)
         self.csum, self.cgated = torch.zeros(cap, hid, **flt), torch.zeros(cap, hid, **flt)
 
-    _FIELDS = ("owner", "parent", "depth", "type", "nchild", "x", "px", "down", "csum", "cgated")
+    _FIELDS = ("owner", "parent", "depth", "type", "nchild", "x", "w", "px", "down", "csum",
+               "cgated")
 
     def add(self, owner: Tensor, parent: Tensor, depth: Tensor, types: Tensor, x: Tensor,
-            px: Tensor, down: Tensor) -> Tensor:
+            px: Tensor, down: Tensor, w: Tensor) -> Tensor:
         """Append nodes (children's ``nchild``/``csum``/``cgated`` start at zero); their ids."""
         m = owner.numel()
         if self.n + m > self.owner.shape[0]:
@@ -334,7 +497,7 @@ class _NodeBuffer:
         ids = torch.arange(self.n, self.n + m, device=owner.device)
         self.owner[ids], self.parent[ids], self.depth[ids], self.type[ids] = (
             owner, parent, depth, types)
-        self.x[ids], self.px[ids], self.down[ids] = x, px, down
+        self.x[ids], self.px[ids], self.down[ids], self.w[ids] = x, px, down, w
         self.n += m
         return ids
 

@@ -7,6 +7,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
+from robovae.model.decoder import soft_clamp
 from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
 
 
@@ -27,13 +28,29 @@ class TreeEncoder(nn.Module):
     - eq. 7: ``h_G = sum of h_i over the leaves`` (a one-node tree's root is its leaf);
     - ``mu = Linear(h_G)``, ``logvar = Linear(h_G)`` (``log sigma^2``, unclamped).
 
+    **Node latents** (``node_latent_dim > 0``, beyond the paper): every node also gets a local
+    posterior ``q(w_i | G) = N(mu^w(g_i), diag exp(logvar^w(g_i)))`` from its own readout
+    ``h_i`` (eq. 6, computed for every node, not only the leaves) and the two structural facts
+    a node's latent has to carry exactly, its type ``t_i`` and its number of children ``K_i``:
+    ``g_i = h_i + E^t_{t_i} + E^K_{min(K_i, 16)} + K_i c^K`` (the numeric term lets counts
+    beyond the training robots' extrapolate). What is particular to a node then need not
+    squeeze through the one robot vector ``z`` (:mod:`robovae.model.decoder` reads ``w_i`` when
+    it builds node ``i``).
+
     Args:
         in_dim: feature width ``d``; ``batch.x`` must already be normalised.
         hidden_dim: message / hidden width ``H``.
         latent_dim: latent width.
+        node_latent_dim: width of the node latents ``w_i`` (0: none, the paper's model).
+        num_types: number of node types (for the node latents' type embedding).
+        max_children_embed: child counts above this share the last count embedding.
+        node_structure: the node posterior reads ``t_i`` and ``K_i`` (``g_i`` above); without,
+            ``g_i = h_i`` (an ablation: unseen robots then decode much worse).
     """
 
-    def __init__(self, in_dim: int, hidden_dim: int, latent_dim: int) -> None:
+    def __init__(self, in_dim: int, hidden_dim: int, latent_dim: int,
+                 node_latent_dim: int = 0, num_types: int = 2,
+                 max_children_embed: int = 16, node_structure: bool = True) -> None:
         super().__init__()
         self.proj = nn.Linear(in_dim, hidden_dim, bias=False)
         self.cell = TreeGRUCell(hidden_dim)
@@ -41,6 +58,15 @@ class TreeEncoder(nn.Module):
         self.U_e = nn.Linear(hidden_dim, hidden_dim, bias=False)
         self.mu = nn.Linear(hidden_dim, latent_dim)
         self.logvar = nn.Linear(hidden_dim, latent_dim)
+        self.node_latent_dim = node_latent_dim
+        self.node_structure = bool(node_latent_dim and node_structure)
+        if self.node_structure:
+            self.type_emb = nn.Embedding(num_types, hidden_dim)
+            self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
+            self.count_vec = nn.Parameter(torch.zeros(hidden_dim))
+        if node_latent_dim:
+            self.node_mu = nn.Linear(hidden_dim, node_latent_dim)
+            self.node_logvar = nn.Linear(hidden_dim, node_latent_dim)
 
     def forward(self, batch: Data, sched: TreeSchedule | None = None) -> tuple[Tensor, Tensor]:
         """``(mu, logvar)``, ``[B, latent]`` each, for a ``Batch`` (or one ``Data``)."""
@@ -54,13 +80,39 @@ class TreeEncoder(nn.Module):
         """eq. 5–7 and the heads from level-order ``x`` (``[N, d]``) and ``inward`` (``[N, H]``:
         the sum of every message a node receives, ``level_messages(...)[1]``)."""
         leaf = sched.leaf_rows
-        xp = self.proj(x.index_select(0, leaf))
-        h = torch.relu(self.W_e(xp) + self.U_e(inward.index_select(0, leaf)))
+        h = self.node_states(x.index_select(0, leaf), inward.index_select(0, leaf))
         h_g = h.new_zeros(sched.num_graphs, h.shape[1]).index_add(0, sched.leaf_graph, h)
-        # The heads run in float64: a float32 matmul rounds differently with the number of rows
-        # (BLAS kernels), and the KL term exponentiates logvar, which turns those last-bit
-        # differences into a visibly batch-dependent loss. Rounded back to float32, a robot's
-        # (mu, logvar) no longer depend on the other robots of its batch. [B, H] x [H, z]: free.
-        hd = h_g.double()
-        return tuple(F.linear(hd, head.weight.double(), head.bias.double()).to(h_g.dtype)
-                     for head in (self.mu, self.logvar))
+        return _heads(h_g, self.mu, self.logvar)
+
+    def node_states(self, x: Tensor, inward: Tensor) -> Tensor:
+        """eq. 6, ``h_i = ReLU(W^e x_i^p + U^e sum_k m_ki)``, for the rows given."""
+        return torch.relu(self.W_e(self.proj(x)) + self.U_e(inward))
+
+    def node_readout(self, x: Tensor, inward: Tensor, sched: TreeSchedule,
+                     node_type: Tensor) -> tuple[Tensor, Tensor]:
+        """``(mu^w, logvar^w)`` of every node's latent, ``[N, node_latent_dim]`` each, **node
+        order**, from the same level-order inputs as :meth:`readout` and the node types (node
+        order)."""
+        if not self.node_latent_dim:
+            raise ValueError("this encoder has no node latents (node_latent_dim=0)")
+        g = self.node_states(x, inward).index_select(0, sched.inv)
+        if self.node_structure:
+            k = sched.num_children
+            g = g + self.type_emb(node_type) \
+                + self.count_emb(k.clamp_max(self.count_emb.num_embeddings - 1)) \
+                + k[:, None].to(x.dtype) * self.count_vec
+        mu, logvar = _heads(g, self.node_mu, self.node_logvar)
+        return mu, soft_clamp(logvar)
+
+
+def _heads(h: Tensor, mu: nn.Linear, logvar: nn.Linear) -> tuple[Tensor, Tensor]:
+    """``(mu(h), logvar(h))``, computed in float64 and rounded back.
+
+    A float32 matmul rounds differently with the number of rows (BLAS kernels), and the KL term
+    exponentiates logvar, which turns those last-bit differences into a visibly batch-dependent
+    loss. Rounded back to float32, a robot's latents no longer depend on the other robots of
+    its batch. ``[B, H] x [H, z]``: free.
+    """
+    hd = h.double()
+    return tuple(F.linear(hd, head.weight.double(), head.bias.double()).to(h.dtype)
+                 for head in (mu, logvar))

@@ -9,7 +9,11 @@ is the mean squared error over the node's own columns (``batch.x_mask``).
 - ``feat``: masked MSE of the features (eq. 10), normalised units;
 - ``type``: cross-entropy of the node types (eq. 11; identically 0 with a single type);
 - ``kl``: eq. 8, ``-1/(2B) sum_i sum_j (1 + logvar - mu^2 - exp(logvar))``;
-- ``loss = topo + feat + type + beta * kl`` (eq. 13).
+- ``kl_nodes`` (node latents only): the KL of every node's posterior ``q(w_i | G)`` from its
+  conditional prior ``p(w_i | z, h_{p->i}, w_p)`` (:mod:`robovae.model.decoder`), summed over the
+  graph's nodes: ``1/2 sum_j (lambda^p - lambda^q + (e^{lambda^q} + (mu^q - mu^p)^2)
+  e^{-lambda^p} - 1)``;
+- ``loss = topo + feat + type + beta * kl + beta_nodes * kl_nodes`` (eq. 13).
 """
 
 from __future__ import annotations
@@ -24,13 +28,22 @@ from robovae.model.tree import graph_index
 
 
 def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
-             beta: float = 1.0) -> dict[str, Tensor]:
+             beta: float = 1.0, node_mu: Tensor | None = None,
+             node_logvar: Tensor | None = None, beta_nodes: float | None = None,
+             ) -> dict[str, Tensor]:
     """Loss terms of a batch (module docstring for the reduction).
 
+    Args:
+        node_mu: ``[N, node_latent_dim]`` node posterior means (node latents only; ``out``
+            then carries their prior).
+        node_logvar: ``[N, node_latent_dim]`` node posterior log-variances.
+        beta_nodes: weight of ``kl_nodes`` (default: ``beta``).
+
     Returns:
-        ``loss``, ``topo``, ``feat``, ``type``, ``kl`` (scalars, batch means of per-graph sums),
-        ``per_graph_loss`` ``[B]``, and detached metrics ``topo_acc`` (share of correct
-        decisions) and ``type_acc`` (share of correct node types).
+        ``loss``, ``topo``, ``feat``, ``type``, ``kl``, ``kl_nodes`` (scalars, batch means of
+        per-graph sums; ``kl_nodes`` is 0 without node latents), ``per_graph_loss`` ``[B]``, and
+        detached metrics ``topo_acc`` (share of correct decisions) and ``type_acc`` (share of
+        correct node types).
     """
     graph, b = graph_index(batch)
 
@@ -47,6 +60,16 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
     topo_g = per_graph(topo_t, out.topo_graph)
     feat_g, type_g = per_graph(feat_n, graph), per_graph(type_n, graph)
     per_graph_loss = topo_g + feat_g + type_g + beta * kl_g
+    kl_nodes_g = kl_g.new_zeros(b)
+    if node_mu is not None:
+        if out.prior_mu is None or node_logvar is None:
+            raise ValueError("node latents need their posterior and the decoder's prior")
+        pm, plv = out.prior_mu, out.prior_logvar
+        kl_n = 0.5 * (plv - node_logvar + (node_logvar.exp() + (node_mu - pm) ** 2)
+                      * torch.exp(-plv) - 1.0).sum(1)
+        kl_nodes_g = per_graph(kl_n, graph)
+        per_graph_loss = per_graph_loss + (beta if beta_nodes is None else beta_nodes) \
+            * kl_nodes_g
     with torch.no_grad():
         topo_acc = ((out.topo_logits > 0).float() == out.topo_target).float().mean()
         type_acc = (out.type_logits.argmax(-1) == batch.node_type).float().mean()
@@ -56,6 +79,7 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
         "feat": feat_g.mean(),
         "type": type_g.mean(),
         "kl": kl_g.mean(),
+        "kl_nodes": kl_nodes_g.mean(),
         "per_graph_loss": per_graph_loss,
         "topo_acc": topo_acc,
         "type_acc": type_acc,

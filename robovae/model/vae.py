@@ -5,7 +5,8 @@ split by the datamodule and stored in every checkpoint), so ``RoboVAE.load_from_
 alone can encode robot files and decode robots in physical units.
 
 Loss (eq. 12–13):  L = Σ_t BCE(p_t, p̂_t) + Σ_j [MSE(f_j, f̂_j) + CE(s_j, ŝ_j)] + β L_KL,
-with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``.
+with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``; with
+node latents (``node_latent_dim``) also ``+ β_w Σ_j KL(q(w_j | G) || p(w_j | z, h_{p→j}, w_p))``.
 
 Reproducible training: the randomness of an epoch — the shuffle order of a single-process
 training loader (a ``RandomSampler``) and the reparametrisation noise of each batch — is drawn
@@ -40,6 +41,18 @@ from robovae.model.tree import level_messages, tree_schedule
 
 # streams of :meth:`RoboVAE.run_seed`
 _SHUFFLE, _NOISE = 1, 2
+
+
+def _draw(mu: Tensor, logvar: Tensor, sample: bool,
+          generator: torch.Generator | None) -> Tensor:
+    """``mu`` (no sampling), else ``mu + eps exp(logvar / 2)`` with ``eps`` from ``generator``
+    (the global RNG when ``None``)."""
+    if not sample:
+        return mu
+    if generator is None:
+        return reparametrize(mu, logvar)
+    eps = torch.randn(mu.shape, generator=generator, dtype=mu.dtype, device=mu.device)
+    return mu + eps * torch.exp(0.5 * logvar)
 
 
 class RoboVAE(L.LightningModule):
@@ -78,6 +91,14 @@ class RoboVAE(L.LightningModule):
         surgery_ops: at most this many edits per rebuilt robot.
         augment_until: augmentation (features and trees) runs for this fraction of
             ``max_epochs``; the epochs after it train on the true robots (1.0: always augment).
+        node_latent_dim: width of the per-node latents ``w`` (0: none, the paper's model):
+            the encoder gives every node a posterior, the decoder reads it in the node's
+            heads and learns a conditional prior for generation (:mod:`robovae.model.decoder`).
+        beta_nodes: weight of the node latents' KL (``None``: follow β and its warm-up).
+        local_heads: with node latents, a node's type and its expand/backtrack decisions read
+            only its own latent and the child-count/depth context (:mod:`robovae.model.decoder`).
+        node_structure: the node posteriors read each node's type and number of children
+            (:class:`~robovae.model.encoder.TreeEncoder`; off only for the ablation).
     """
 
     def __init__(
@@ -103,16 +124,22 @@ class RoboVAE(L.LightningModule):
         latent_inputs: bool = False,
         tree_surgery: float = 0.0,
         surgery_ops: int = 3,
+        node_latent_dim: int = 0,
+        beta_nodes: float | None = None,
+        local_heads: bool = False,
+        node_structure: bool = True,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
         fs = get_feature_set(feature_set)
         self.feature_set = fs
         self.normalizer = Normalizer(fs)
-        self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim)
+        self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim, node_latent_dim,
+                                   fs.num_node_types, node_structure=node_structure)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
                                    topo_context=topo_context, type_mask=fs.type_mask(),
-                                   inputs=decoder_inputs, latent_inputs=latent_inputs)
+                                   inputs=decoder_inputs, latent_inputs=latent_inputs,
+                                   node_latent_dim=node_latent_dim, local_heads=local_heads)
         self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------
@@ -166,6 +193,11 @@ class RoboVAE(L.LightningModule):
             return hp.beta
         frac = min(1.0, epoch / hp.beta_warmup_epochs)
         return hp.beta_start + frac * (hp.beta - hp.beta_start)
+
+    def beta_nodes_at(self, epoch: int) -> float:
+        """β_w of an epoch: ``beta_nodes`` when set, else :meth:`beta_at`."""
+        bn = self.hparams.get("beta_nodes")
+        return self.beta_at(epoch) if bn is None else float(bn)
 
     def run_seed(self, *keys: int) -> int:
         """A seed derived from the run's seed (``seed_everything``'s ``PL_GLOBAL_SEED``, else
@@ -222,15 +254,15 @@ class RoboVAE(L.LightningModule):
         down, total, sdown = level_messages(cells, torch.stack(px), sched, num_encoder=1)
         messages = (down[1], total[1], sdown[1]) if stacked else None
         mu, logvar = enc.readout(x, total[0], sched)
-        if not sample:
-            z = mu
-        elif generator is None:
-            z = reparametrize(mu, logvar)
-        else:  # the same formula, with this batch's own noise
-            eps = torch.randn(mu.shape, generator=generator, dtype=mu.dtype, device=mu.device)
-            z = mu + eps * torch.exp(0.5 * logvar)
-        out = dec.teacher_forcing(z, nb, sched, messages=messages)
-        return vae_loss(out, nb, mu, logvar, self.beta_at(self.current_epoch))
+        z = _draw(mu, logvar, sample, generator)
+        w = w_mu = w_logvar = None
+        if enc.node_latent_dim:
+            w_mu, w_logvar = enc.node_readout(x, total[0], sched, nb.node_type)
+            w = _draw(w_mu, w_logvar, sample, generator)
+        out = dec.teacher_forcing(z, nb, sched, messages=messages, w=w)
+        epoch = self.current_epoch
+        return vae_loss(out, nb, mu, logvar, self.beta_at(epoch), w_mu, w_logvar,
+                        self.beta_nodes_at(epoch))
 
     def _step(self, batch: Batch, stage: str, batch_idx: int = 0) -> Tensor:
         gen = None
@@ -240,13 +272,23 @@ class RoboVAE(L.LightningModule):
         terms = self(batch, sample=stage == "train", generator=gen)
         bs = batch.num_graphs
         # sync_dist: under DDP the epoch value is the mean over all ranks' robots
-        for k in ("loss", "topo", "feat", "type", "kl"):
+        keys = ("loss", "topo", "feat", "type", "kl") + \
+            (("kl_nodes",) if self.hparams.get("node_latent_dim") else ())
+        for k in keys:
             self.log(f"{stage}/{k}", terms[k], batch_size=bs, prog_bar=k == "loss",
                      on_epoch=True, on_step=False, sync_dist=True)
         if stage == "train":
             self.log("train/beta", self.beta_at(self.current_epoch), batch_size=bs,
                      on_epoch=True, on_step=False, sync_dist=True)
         return terms["loss"]
+
+    def transfer_batch_to_device(self, batch, device: torch.device, dataloader_idx: int):
+        """Robot batches move with PyG's own ``Batch.to`` (a no-op when they are already
+        there); Lightning's default walks every attribute of the batch (names, sources, ...)
+        through ``apply_to_collection``, a few milliseconds per step on the CPU."""
+        if isinstance(batch, Batch):
+            return batch if batch.x.device == device else batch.to(device)
+        return super().transfer_batch_to_device(batch, device, dataloader_idx)
 
     def training_step(self, batch: Batch, batch_idx: int) -> Tensor:
         """One optimisation step: the loss of :meth:`forward` on a (possibly augmented) batch."""
@@ -265,13 +307,12 @@ class RoboVAE(L.LightningModule):
         (:class:`~robovae.generate.predict.LatentIndices`: ``z_i`` from ``(seed, i)``)."""
         if not isinstance(batch, dict):
             return self.reconstruct(batch)
-        from robovae.generate.pipeline import latent
+        from robovae.generate.pipeline import prior_latents
 
         seed, temp = int(batch["seed"][0]), float(batch["temperature"][0])
-        z = torch.stack([latent(seed, int(i), self.hparams.latent_dim, temp)
-                         for i in batch["index"]]).to(self.dtype)
-        return {"index": batch["index"], "z": z, "graphs": self.decode(z), "seed": seed,
-                "temperature": temp}
+        z, noise = prior_latents(self, seed, batch["index"].tolist(), temp)
+        return {"index": batch["index"], "z": z, "graphs": self.decode(z, node_noise=noise),
+                "seed": seed, "temperature": temp}
 
     def configure_optimizers(self):
         """AdamW; with ``lr_schedule="cosine"`` the rate follows
@@ -299,6 +340,26 @@ class RoboVAE(L.LightningModule):
         if not isinstance(batch, Batch):
             batch = Batch.from_data_list([batch])
         return self.encoder(self.normalized(batch.to(self.device)))
+
+    @torch.no_grad()
+    def encode_nodes(self, batch: Batch | Data) -> tuple[Tensor, list[Tensor]]:
+        """``(mu, node_mu)``: each robot's latent mean ``[B, latent_dim]`` and its nodes' latent
+        means in pre-order (a list of ``[n_i, node_latent_dim]``; empty rows without node
+        latents): what :meth:`reconstruct` decodes."""
+        if not isinstance(batch, Batch):
+            batch = Batch.from_data_list([batch])
+        nb = self.normalized(batch.to(self.device))
+        enc = self.encoder
+        sched = tree_schedule(nb)
+        x = nb.x.index_select(0, sched.order)
+        px = enc.cell.project(x, enc.proj.weight)
+        _, total, _ = level_messages([enc.cell], px[None], sched, 1)
+        mu, _ = enc.readout(x, total[0], sched)
+        counts = torch.bincount(sched.graph, minlength=sched.num_graphs).tolist()
+        if not enc.node_latent_dim:
+            return mu, [mu.new_zeros(n, 0) for n in counts]
+        w_mu, _ = enc.node_readout(x, total[0], sched, nb.node_type)
+        return mu, list(torch.split(w_mu, counts))
 
     def check_latents(self, z: Tensor) -> Tensor:
         """``z`` as a ``[B, latent_dim]`` tensor of the model's dtype and device.
@@ -332,10 +393,18 @@ class RoboVAE(L.LightningModule):
         return z
 
     @torch.no_grad()
-    def decode(self, z: Tensor, max_nodes: int | None = None,
-               max_depth: int | None = None) -> list[RobotData]:
+    def decode(self, z: Tensor, max_nodes: int | None = None, max_depth: int | None = None,
+               node_latents: Sequence[Tensor] | None = None, node_noise: Tensor | None = None,
+               clamp: bool = True) -> list[RobotData]:
         """Greedy autoregressive decoding of latents ``z`` [B, latent] into robot graphs with
         physical feature values.
+
+        With node latents, ``node_latents`` (per robot ``[n_i, node_latent_dim]``, pre-order,
+        e.g. from :meth:`encode_nodes`) are used for the first ``n_i`` nodes; the other nodes
+        are drawn from their conditional prior, ``mu^p + sigma^p * node_noise[b, t]``
+        (``node_noise``: ``[B, >= max_nodes, node_latent_dim]``, temperature included), or take
+        the prior mean without ``node_noise``. ``clamp=False`` skips the ``support_margin``
+        clipping (reconstruction of robots that lie outside the training range).
 
         Any latent the model can represent decodes within the limits (at most ``max_nodes``
         nodes, depth at most ``max_depth``; defaults from the hyperparameters), however large:
@@ -353,10 +422,14 @@ class RoboVAE(L.LightningModule):
         z = self.check_latents(z)
         if z.shape[0] == 0:
             return []
-        trees = self.decoder.decode(z, max_nodes=int(max_nodes), max_depth=int(max_depth))
+        if node_noise is not None:
+            node_noise = torch.as_tensor(node_noise).to(self.device, self.dtype)
+        trees = self.decoder.decode(z, max_nodes=int(max_nodes), max_depth=int(max_depth),
+                                    node_latents=node_latents, node_noise=node_noise)
         out, bad = [], []
         for i, (parent, node_type, x) in enumerate(trees):
-            phys = self.normalizer.inverse(x, node_type, clamp=hp.support_margin)
+            phys = self.normalizer.inverse(x, node_type,
+                                           clamp=hp.support_margin if clamp else None)
             out.append(tree_data(parent.cpu(), node_type.cpu(), phys.cpu(), self.feature_set,
                                  name=f"decoded_{i}", source="robovae.decode"))
             if not bool(torch.isfinite(out[-1].x).all()):  # (robot graphs hold float32)
@@ -372,8 +445,10 @@ class RoboVAE(L.LightningModule):
         """Encode (z = mu) and decode each robot; names follow the inputs."""
         if not isinstance(batch, Batch):
             batch = Batch.from_data_list([batch])
-        mu, _ = self.encode(batch)
-        out = self.decode(mu)
+        mu, nodes = self.encode_nodes(batch)
+        # no support clipping: a real robot may lie outside the training range
+        out = self.decode(mu, node_latents=nodes if self.encoder.node_latent_dim else None,
+                          clamp=False)
         names = batch.name if isinstance(batch.name, list) else [batch.name]
         for d, name in zip(out, names):
             d.name = name
@@ -382,6 +457,12 @@ class RoboVAE(L.LightningModule):
     @torch.no_grad()
     def sample(self, n: int, temperature: float = 1.0,
                generator: torch.Generator | None = None) -> list[RobotData]:
-        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)``."""
-        z = torch.randn(n, self.hparams.latent_dim, generator=generator) * temperature
-        return self.decode(z)
+        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)`` (and, with node
+        latents, every node's latent from its conditional prior at the same temperature)."""
+        hp = self.hparams
+        z = torch.randn(n, hp.latent_dim, generator=generator) * temperature
+        noise = None
+        if hp.get("node_latent_dim"):
+            noise = torch.randn(n, hp.max_nodes, hp.node_latent_dim,
+                                generator=generator) * temperature
+        return self.decode(z, node_noise=noise)

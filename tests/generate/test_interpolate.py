@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 import torch
+from torch_geometric.data import Batch
 
 from robovae.generate.interpolate import interpolate, latent_path
 
@@ -12,17 +13,33 @@ from robovae.generate.interpolate import interpolate, latent_path
 def test_path_starts_and_ends_at_the_encoded_means(trained):
     model, dm, _ = trained
     a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
-    t, z = latent_path(model, a, b, steps=5)
+    t, z, w = latent_path(model, a, b, steps=5)
     mu, _ = model.encode(a)
-    assert t.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert t.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0] and w is None
     assert torch.allclose(z[0], mu[0]) and not torch.allclose(z[0], z[-1])
     assert torch.allclose(z[2], (z[0] + z[-1]) / 2, atol=1e-6)
     with pytest.raises(ValueError, match="at least 2 steps"):
         latent_path(model, a, b, steps=1)
 
 
-def test_every_step_is_written_and_validated(trained, tmp_path):
-    model, dm, _ = trained
+def test_node_latents_are_interpolated_node_by_node(trained_nodes):
+    """Node i's latent goes from a's to b's; the shorter robot is padded with the other's
+    tail, so both ends hold the robots' own node latents."""
+    model, dm, _ = trained_nodes
+    a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
+    _, (wa, wb) = model.encode_nodes(Batch.from_data_list([a, b]))
+    assert wa.shape[0] < wb.shape[0]
+    _, _, w = latent_path(model, a, b, steps=3)
+    assert len(w) == 3 and all(s.shape == wb.shape for s in w)
+    assert torch.equal(w[0][:wa.shape[0]], wa) and torch.equal(w[0][wa.shape[0]:],
+                                                                wb[wa.shape[0]:])
+    assert torch.allclose(w[-1], wb)
+    assert torch.allclose(w[1][:wa.shape[0]], (wa + wb[:wa.shape[0]]) / 2)
+
+
+@pytest.mark.parametrize("fixture", ["trained", "trained_nodes"])
+def test_every_step_is_written_and_validated(fixture, request, tmp_path):
+    model, dm, _ = request.getfixturevalue(fixture)
     a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
     steps = interpolate(model, a, b, steps=3, out=tmp_path)
     assert [s.t for s in steps] == [0.0, 0.5, 1.0]

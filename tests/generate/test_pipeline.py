@@ -8,6 +8,7 @@ from pathlib import Path
 import lightning as L
 import mujoco
 import pytest
+import torch
 
 from robovae.cli import main
 from robovae.data.datamodule import RobotDataModule
@@ -18,6 +19,8 @@ from robovae.generate.pipeline import (
     SUMMARY,
     generate,
     latent,
+    node_noise,
+    prior_latents,
     read_manifest,
 )
 from robovae.generate.predict import RobotWriter
@@ -46,8 +49,11 @@ def test_generate_writes_loadable_robots_and_a_report(trained, tmp_path):
     assert "validity" in report.format()
 
 
-def test_same_seed_gives_byte_identical_files(trained, tmp_path):
-    _, _, ckpt = trained
+@pytest.mark.parametrize("fixture", ["trained", "trained_nodes"])
+def test_same_seed_gives_byte_identical_files(fixture, request, tmp_path):
+    """A robot depends on (checkpoint, seed, index) only, not on the batch it was decoded in
+    (with node latents too: their noise comes from the robot's own stream)."""
+    _, _, ckpt = request.getfixturevalue(fixture)
     generate(ckpt, 6, tmp_path / "a", seed=1, validate=False, progress=False, batch_size=6)
     generate(ckpt, 6, tmp_path / "b", seed=1, validate=False, progress=False, batch_size=2)
     generate(ckpt, 6, tmp_path / "c", seed=2, validate=False, progress=False)
@@ -71,6 +77,17 @@ def test_resume_skips_done_robots_and_survives_a_torn_line(trained, tmp_path):
     ref = tmp_path / "ref"
     generate(ckpt, 7, ref, validate=False, progress=False)
     assert _files(out) == _files(ref)
+
+
+def test_node_noise_depends_on_seed_and_index_only(trained_nodes):
+    model = trained_nodes[0]
+    z, noise = prior_latents(model, 4, [2, 7, 9], temperature=0.5)
+    z1, noise1 = prior_latents(model, 4, [7])
+    assert torch.equal(z[1], 0.5 * z1[0]) and torch.equal(noise[1], 0.5 * noise1[0])
+    assert noise.shape == (3, model.hparams.max_nodes, 6)
+    assert torch.equal(noise1[0], node_noise(4, 7, model.hparams.max_nodes, 6))
+    assert not torch.equal(noise1[0], node_noise(4, 8, model.hparams.max_nodes, 6))
+    assert prior_latents(trained_nodes[0].__class__(), 0, [1])[1] is None  # no node latents
 
 
 def test_latent_depends_on_seed_and_index_only():

@@ -128,13 +128,20 @@ def test_decode_matches_teacher_forcing(inputs: str, latent_inputs: bool, seed: 
     assert len(set(sizes)) > 5 and max(s for s in sizes if s < max_nodes) > 10
     with torch.no_grad():
         out = dec.teacher_forcing(z, Batch.from_data_list(trees))
+    assert_decoded_as_scored(out, trees, max_nodes, max_depth)
+
+
+def assert_decoded_as_scored(out, trees: list, max_nodes: int, max_depth: int) -> None:
+    """Teacher forcing on decoded ``trees`` (``out``) predicts their features and types and
+    makes their decisions: every expansion a "yes", every backtrack of an untruncated tree a
+    "no"."""
     mask = FULL.type_mask()[torch.cat([t.node_type for t in trees])]
     torch.testing.assert_close(torch.where(mask, out.feat_pred, 0.0),
                                torch.cat([t.x for t in trees]), atol=1e-5, rtol=1e-5)
     assert torch.equal(out.type_logits.argmax(-1), torch.cat([t.node_type for t in trees]))
     expand = out.topo_target == 1
     assert bool((out.topo_logits[expand] > 0).all())
-    for g, t in enumerate(trees):  # untruncated trees: every backtrack was a "no"
+    for g, t in enumerate(trees):
         if t.num_nodes < max_nodes and int(t.depth.max()) < max_depth:
             sel = (out.topo_graph == g) & ~expand
             assert bool((out.topo_logits[sel] <= 0).all())
