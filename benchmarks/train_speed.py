@@ -2,15 +2,18 @@
 per-tree reference loop, and the encoder against its naive per-edge reference.
 
 Datasets: the 17 Menagerie robots (``--menagerie``, default ``../shared/menagerie``) and
-``--procedural`` procedural robots. One training step = forward + backward + AdamW step.
+``--procedural`` procedural robots. One training step = forward + backward + AdamW step. The
+model is the one of ``--config`` (its ``model:`` block; default ``configs/menagerie17.yaml``).
 
 Also measured: the time of one training step on the 17 Menagerie robots in one batch (the
-paper's setting), and with ``--lightning-epochs N`` the steady-state epochs/s of
-``Trainer.fit`` on them (one batch of 17 per epoch, progress bar, logger and checkpointing off;
-the paper trains 1500 epochs).
+paper's setting); with ``--lightning-epochs N`` the steady-state epochs/s of ``Trainer.fit`` on
+them (one batch of 17 per epoch, progress bar, logger and checkpointing off); and with
+``--fit`` the whole 17-robot experiment, ``configs/menagerie17.yaml`` through the Lightning CLI
+exactly as ``python -m robovae.evaluate.experiments run menagerie17`` trains it (1500 epochs,
+validation, reconstruction metrics and checkpoints included), with its RA and FRE.
 
     python benchmarks/train_speed.py --procedural 1000 --steps 5
-    python benchmarks/train_speed.py --procedural 0 --lightning-epochs 300 --threads 1
+    python benchmarks/train_speed.py --procedural 0 --lightning-epochs 300 --fit --threads 2
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import time
 from pathlib import Path
 
 import torch
+import yaml
 from torch_geometric.data import Batch
 
 from robovae.cli import format_table
@@ -83,7 +87,7 @@ def _step_ms(model: RoboVAE, batch: Batch, steps: int = 30) -> tuple[float, floa
     return times[len(times) // 2], times[0]
 
 
-def _lightning_rate(menagerie: str, root: Path, epochs: int) -> float:
+def _lightning_rate(menagerie: str, root: Path, epochs: int, model_kw: dict) -> float:
     """Steady-state epochs/s of ``Trainer.fit`` on the 17 robots (epochs 10.. timed)."""
     import logging
     import warnings
@@ -112,8 +116,18 @@ def _lightning_rate(menagerie: str, root: Path, epochs: int) -> float:
                         enable_checkpointing=False, enable_progress_bar=False,
                         enable_model_summary=False, num_sanity_val_steps=0,
                         check_val_every_n_epoch=epochs + 1, callbacks=[clock])
-    trainer.fit(RoboVAE(beta=1e-4, lr=3e-3), dm)
+    trainer.fit(RoboVAE(**model_kw), dm)
     return (epochs - 10) / (time.perf_counter() - clock.start)
+
+
+def _fit_experiment(config: str, menagerie: str, root: Path, threads: int) -> dict:
+    """Train ``config`` through the Lightning CLI as the experiment runner does; its result."""
+    from robovae.evaluate.experiments import RunSpec, run_one
+
+    spec = RunSpec("menagerie17", config, 0, root / "fit" / "seed0",
+                   [f"--data.root={root}", f'--data.sources=["dir:{menagerie}"]'],
+                   threads=threads)
+    return run_one(spec)
 
 
 def _machine_gflops(n: int = 256, reps: int = 200) -> float:
@@ -133,11 +147,15 @@ def main() -> None:
     p.add_argument("--procedural", type=int, default=1000)
     p.add_argument("--steps", type=int, default=5, help="timed steps per measurement")
     p.add_argument("--batch-sizes", default="1,16,64")
-    p.add_argument("--hidden", type=int, default=128)
+    p.add_argument("--config", default="configs/menagerie17.yaml",
+                   help="the model settings (its model: block) and the --fit experiment")
     p.add_argument("--threads", type=int, default=0, help="torch threads (0: default)")
     p.add_argument("--lightning-epochs", type=int, default=0,
                    help="also time Trainer.fit on the 17 robots for this many epochs")
+    p.add_argument("--fit", action="store_true",
+                   help="also train --config through the Lightning CLI and time it")
     args = p.parse_args()
+    model_kw = yaml.safe_load(Path(args.config).read_text()).get("model", {})
     if args.threads:
         torch.set_num_threads(args.threads)
     torch.manual_seed(0)
@@ -150,7 +168,7 @@ def main() -> None:
             root, [f"procedural:n={args.procedural},seed=0"], progress=False))
     rows = []
     for name, graphs in sets.items():
-        model = RoboVAE(hidden_dim=args.hidden)
+        model = RoboVAE(**model_kw)
         x = torch.cat([g.x for g in graphs])
         t = torch.cat([g.node_type for g in graphs])
         model.normalizer.load_state_dict(Normalizer("paper34").fit(x, t).state_dict())
@@ -180,12 +198,20 @@ def main() -> None:
     print(format_table(rows, ["dataset", "nodes/graph", "batch", "level-scheduled graphs/s",
                               "per-tree loop graphs/s", "speed-up"]))
     if args.lightning_epochs and "menagerie17" in sets:
-        rate = _lightning_rate(args.menagerie, root, max(args.lightning_epochs, 20))
+        rate = _lightning_rate(args.menagerie, root, max(args.lightning_epochs, 20), model_kw)
         print(f"Trainer.fit, 17 Menagerie robots, batch 17: {rate:.1f} epochs/s "
               f"({1000 / rate:.1f} ms/epoch; 1500 epochs ~ {1500 / rate:.0f} s + start-up)")
+    if args.fit and "menagerie17" in sets:
+        r = _fit_experiment(args.config, args.menagerie, root, args.threads)
+        s = r["summary"]
+        print(f"{args.config}: {r['epochs']} epochs, Trainer.fit {r['fit_s']:.1f} s, whole "
+              f"command {r['command_s']:.1f} s (start-up, data, scoring); 17 robots: RA "
+              f"{s['ra']:.1%}, exact {s['exact']:.0%}, mean FRE {s['fre']:.2g}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"threads: {torch.get_num_threads()}, hidden {args.hidden}, peak RSS {peak:.0f} MiB, "
-          f"machine reference {_machine_gflops():.1f} GFLOP/s (256x256 float32 matmul)")
+    print(f"threads: {torch.get_num_threads()}, model of {args.config} (hidden "
+          f"{model_kw.get('hidden_dim', 128)}, node latents {model_kw.get('node_latent_dim', 0)})"
+          f", peak RSS {peak:.0f} MiB, machine reference {_machine_gflops():.1f} GFLOP/s "
+          "(256x256 float32 matmul)")
 
 
 if __name__ == "__main__":

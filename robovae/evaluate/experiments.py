@@ -7,8 +7,7 @@ run, and renders the result tables and loss curves::
 
     python -m robovae.evaluate.experiments run menagerie4 --seeds 0,1,2
     python -m robovae.evaluate.experiments loo --seeds 0,1,2      # leave-one-out over the 17
-    python -m robovae.evaluate.experiments ablation --seeds 0,1,2
-    python -m robovae.evaluate.experiments study --seeds 0            # the 17-robot schedule
+    python -m robovae.evaluate.experiments ablation --seeds 0,1,2 --loo   # + LOO per variant
     python -m robovae.evaluate.experiments report                 # docs/results.md + docs/img
     python -m robovae.evaluate.experiments all                    # everything (``--all`` too)
 
@@ -61,8 +60,6 @@ EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
                "overfit: Go2 -> Go2"),
     Experiment("synthetic", "configs/synthetic.yaml", "structure exact, small FRE",
                "synthetic: 20 random trees -> unseen tree"),
-    Experiment("synthetic_many", "configs/synthetic_many.yaml", "(not in the paper)",
-               "synthetic: 2,000 random trees -> unseen tree"),
     Experiment("menagerie2", "configs/menagerie2.yaml", "RA 100 %, FRE ~1e-3",
                "2 robots (Go1, A1) -> Go2"),
     Experiment("menagerie4", "configs/menagerie4.yaml", "RA 81 % (extra limb), FRE ~1e-3",
@@ -72,67 +69,31 @@ EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
                "17 robots (appendix A) -> Go2 (in training)"),
 )}
 
-_NO_AUG = ("--model.feature_shift=0", "--model.feature_noise=0")
-#: 100 procedural robots (robovae.data.procedural) added to every training split; 220 epochs
-#: of 6-7 batches of 17 make about the 1,500 steps of the 1,500 one-batch epochs of the configs
-_PROCEDURAL = ('--data.sources=["dir:../shared/menagerie","procedural:n=100,seed=0"]',
-               "--data.train_names+=proc_*", "--trainer.max_epochs=220",
-               "--trainer.check_val_every_n_epoch=20", "--metrics.every_n_epochs=20",
-               "--checkpoint.every_n_epochs=20")
+_NO_LATENTS = ("--model.node_latent_dim=0", "--model.local_heads=false")
+_PAPER_DECODER = (*_NO_LATENTS, "--model.decoder_inputs=features", "--model.tree_surgery=0")
 
-#: Ablation variants: name -> (description, CLI overrides applied on top of the config).
+#: Ablation variants: name -> (description, CLI overrides on top of the configs). The 2- and
+#: 4-robot configs and ``configs/loo17.yaml`` share one model block, so a variant means the same
+#: change in every experiment; runs go to ``runs/experiments/<experiment>/<variant>/``.
 ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "default": ("the configs: depth/child-count context in the expansion head + feature "
-                "augmentation (shift 0.5, noise 0.1)", ()),
-    "paper": ("eq. 9 as published: no context, no augmentation",
-              ("--model.topo_context=false", *_NO_AUG)),
-    "no_augment": ("context, no augmentation", _NO_AUG),
-    "no_context": ("augmentation, no context", ("--model.topo_context=false",)),
-    "clean_end": ("the configs, with the last 20 % of the epochs on the true features "
-                  "(augment_until 0.8)", ("--model.augment_until=0.8",)),
-    "types": ("the configs with the type-input decoder (``decoder_inputs=types``)",
-              ("--model.decoder_inputs=types",)),
-    "surgery": ("the configs + tree surgery: half the training robots of every step rebuilt "
-                "by 1-3 random limb edits (drop, duplicate, graft, swap)",
-                ("--model.tree_surgery=0.5",)),
-    "surgery_latent": ("tree surgery + the decoder's GRU inputs read z (``latent_inputs``)",
-                       ("--model.tree_surgery=0.5", "--model.latent_inputs=true")),
-    "surgery_procedural": ("tree surgery + 100 procedural legged robots (``procedural:n=100``) "
-                           "in the training split, 220 epochs (the same number of steps)",
-                           ("--model.tree_surgery=0.5", *_PROCEDURAL)),
-    "beta0.01": ("context, no augmentation, beta 0.01 (warm-up 100 epochs) instead of 1e-4",
-                 (*_NO_AUG, "--model.beta=0.01", "--model.beta_warmup_epochs=100")),
-}
-
-
-_B17 = ("--data.batch_size=17",)
-_AUG = ("--model.feature_shift=0.5", "--model.feature_noise=0.1")
-_FEATURES = ("--model.decoder_inputs=features",)
-
-#: The 17-robot schedule study: name -> (change, CLI overrides on top of
-#: ``configs/menagerie17.yaml``). Runs go to ``runs/experiments/menagerie17/study-<name>/``; the
-#: table (``study_table``) reads each run's resolved ``config.yaml``, so it always shows what
-#: was actually trained.
-STUDY: dict[str, tuple[str, tuple[str, ...]]] = {
-    "features_aug_lr3_b17": ("the previous config: feature-input decoder, augmentation, lr 3e-3, "
-                             "one batch of 17", (*_FEATURES, *_AUG, "--model.lr=0.003", *_B17)),
-    "features_aug_clean_end": ("the same, true features for the last 20 % of the epochs",
-                               (*_FEATURES, *_AUG, "--model.augment_until=0.8",
-                                "--model.lr=0.003", *_B17)),
-    "features_lr3_b17": ("feature-input decoder, no augmentation, lr 3e-3, batch 17",
-                         (*_FEATURES, "--model.lr=0.003", *_B17)),
-    "types_aug_lr3_b17": ("type-input decoder, augmentation, lr 3e-3, batch 17",
-                          (*_AUG, "--model.lr=0.003", *_B17)),
-    "types_lr3_b17": ("type-input decoder, lr 3e-3, batch 17", ("--model.lr=0.003", *_B17)),
-    "types_lr3_b17_beta1e-5": ("the same with beta 1e-5",
-                               ("--model.lr=0.003", "--model.beta=1e-5", *_B17)),
-    "types_lr6_b17": ("type-input decoder, lr 6e-3, batch 17", _B17),
-    "types_lr12_b17": ("type-input decoder, lr 1.2e-2, batch 17", ("--model.lr=0.012", *_B17)),
-    "types_lr6_b17_e3000": ("type-input decoder, lr 6e-3, batch 17, 3000 epochs",
-                            (*_B17, "--trainer.max_epochs=3000")),
-    "types_lr6_b6_noclip": ("the config without gradient clipping",
-                            ("--trainer.gradient_clip_val=null",)),
-    "types_lr6_b6_e3000": ("the config with 3000 epochs", ("--trainer.max_epochs=3000",)),
+    "default": ("the configs: node latents with local heads (the node posterior reads the "
+                "node's type and child count), type-input decoder, feature augmentation "
+                "(shift 1.0, noise 0.5), tree surgery 0.5", ()),
+    "paper": ("eq. 4-13 as published: one latent z, the decoder reads features, no depth/count "
+              "context, no augmentation", (*_PAPER_DECODER, "--model.topo_context=false",
+                                           "--model.feature_shift=0", "--model.feature_noise=0")),
+    "previous": ("this project before node latents: the paper + depth/count context + feature "
+                 "augmentation (shift 0.5, noise 0.1)",
+                 (*_PAPER_DECODER, "--model.feature_shift=0.5", "--model.feature_noise=0.1")),
+    "no_node_latents": ("the configs with one latent z only (type-input decoder, augmentation, "
+                        "tree surgery)", _NO_LATENTS),
+    "context_heads": ("node latents, but the type and topology heads also read z and the "
+                      "messages (eq. 9-11 + w)", ("--model.local_heads=false",)),
+    "no_structure": ("node latents with local heads, but the node posterior does not read the "
+                     "node's type and child count", ("--model.node_structure=false",)),
+    "no_surgery": ("the configs without tree surgery", ("--model.tree_surgery=0",)),
+    "no_augment": ("the configs without feature augmentation",
+                   ("--model.feature_shift=0", "--model.feature_noise=0")),
 }
 
 
@@ -434,8 +395,11 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
     return "\n".join(lines)
 
 
-def loo_compare_table(results: list[dict],
-                      variants: Sequence[str] = ("default", "surgery")) -> str:
+#: the leave-one-out variants shown side by side in docs/results.md
+LOO_COMPARE = ("paper", "previous", "default")
+
+
+def loo_compare_table(results: list[dict], variants: Sequence[str] = LOO_COMPARE) -> str:
     """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true, the
     held-out robot's teacher-forced topology loss at the end of training (``val/topo`` of the
     run's log: the sum of the expansion BCE over its decisions, ``z = mu``, in nats) and the
@@ -480,7 +444,7 @@ def loo_compare_table(results: list[dict],
 
 def ablation_table(results: list[dict]) -> str:
     """Markdown table: one row per ablation variant: unseen Go2 from 2 and 4 robots and
-    leave-one-out (the 17-robot fit has its own study, :func:`study_table`)."""
+    leave-one-out (mean over the seeds that ran)."""
     lines = ["| variant | change | 2 robots -> Go2: RA / RA_true / exact | "
              "4 robots -> Go2: RA / RA_true / exact | LOO mean RA / exact |", "|---" * 5 + "|"]
     for v, (desc, _) in ABLATIONS.items():
@@ -497,49 +461,6 @@ def ablation_table(results: list[dict]) -> str:
                                  _pct([statistics.mean(float(t["exact"]) for t in p)
                                        for p in full])]) if full else "n/a")
         lines.append(f"| {v} | {desc} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def _run_config(r: dict) -> dict:
-    """The resolved Lightning config of a run (``config.yaml`` beside its ``metrics.csv``)."""
-    import yaml
-
-    path = Path(r["metrics_csv"]).parent / "config.yaml"
-    return yaml.safe_load(path.read_text()) if path.is_file() else {}
-
-
-def study_table(results: list[dict]) -> str:
-    """Markdown table of the 17-robot schedule study (:data:`STUDY`) and the config itself:
-    settings read from each run's resolved config, mean over seeds of the 17 robots' RA, exact
-    match and FRE, Go2's FRE and the worst robot's."""
-    lines = ["| variant | change | decoder input | augmentation | lr | batch | grad clip | beta | "
-             "epochs | seeds | RA | exact | FRE (mean of 17) | FRE Go2 | FRE worst robot | "
-             "fit wall (s) |", "|---" * 16 + "|"]
-    rows = [(f"study-{k}", k, d) for k, (d, _) in STUDY.items()]
-    rows.append(("default", "**menagerie17.yaml**", "the config"))
-    for variant, name, desc in rows:
-        rs = sorted(_group(results, experiment="menagerie17", variant=variant),
-                    key=lambda r: r["seed"])
-        if not rs:
-            continue
-        cfg = _run_config(rs[0])
-        m, d, tr = cfg.get("model", {}), cfg.get("data", {}), cfg.get("trainer", {})
-        aug = "no"
-        if m.get("feature_shift", 0) or m.get("feature_noise", 0):
-            aug = f"shift {m.get('feature_shift')}, noise {m.get('feature_noise')}"
-            if m.get("augment_until", 1.0) < 1:
-                aug += f", until {m['augment_until']}"
-        go2 = [next((t["fre"] for t in r["test"] if t["name"] == "go2"), math.nan) for r in rs]
-        worst = [max(t["fre"] for t in r["test"]) for r in rs]
-        s = [r["summary"] for r in rs]
-        lines.append(
-            f"| {name} | {desc} | {m.get('decoder_inputs', 'features')} | {aug} | {m.get('lr')} "
-            f"| {d.get('batch_size')} | {tr.get('gradient_clip_val') or 'no'} | {m.get('beta')} | "
-            f"{rs[0]['epochs']} | "
-            f"{','.join(str(r['seed']) for r in rs)} | {_pct([x['ra'] for x in s])} | "
-            f"{_pct([x['exact'] for x in s])} | {_ms([x['fre'] for x in s], '{:.2g}')} | "
-            f"{_ms(go2, '{:.2g}')} | {_ms(worst, '{:.2g}')} | "
-            f"{_ms([r['fit_s'] for r in rs], '{:.0f}')} |")
     return "\n".join(lines)
 
 
@@ -565,12 +486,8 @@ def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     text = _replace_block(text, "experiments", experiments_table(results))
     text = _replace_block(text, "menagerie17", per_robot_table(results, "menagerie17"))
     text = _replace_block(text, "loo", loo_table(results))
-    text = _replace_block(text, "loo_compare", loo_compare_table(results))
-    for key, variants in (("loo_compare_latent", ("surgery", "surgery_latent")),
-                          ("loo_compare_procedural", ("surgery", "surgery_procedural"))):
-        text = _replace_block(text, key, loo_compare_table(results, variants))
+    text = _replace_block(text, "loo_compare", loo_compare_table(results, LOO_COMPARE))
     text = _replace_block(text, "ablation", ablation_table(results))
-    text = _replace_block(text, "study", study_table(results))
     doc.write_text(text)
     print(f"wrote {doc}")
 
@@ -583,7 +500,7 @@ def _seeds(s: str) -> list[int]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m robovae.evaluate.experiments {run,loo,ablation,study,report,all}``: exit
+    """``python -m robovae.evaluate.experiments {run,loo,ablation,report,all}``: exit
     code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--all":
@@ -612,8 +529,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     ab = sub.add_parser("ablation", parents=[common], help="the ablation variants")
     ab.add_argument("--only", default="", help="comma-separated variants")
     ab.add_argument("--loo", action="store_true", help="also the leave-one-out per variant")
-    st = sub.add_parser("study", parents=[common], help="the 17-robot schedule study")
-    st.add_argument("--only", default="", help="comma-separated study variants")
     rp = sub.add_parser("report", help="write docs/results.md tables and docs/img loss curves")
     rp.add_argument("--root", default=str(RUNS), help="where runs are stored")
     al = sub.add_parser("all", parents=[common], help="every experiment, LOO, ablation, report")
@@ -647,22 +562,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.loo:
                 specs += loo_specs(args.seeds, variant=v, extra=ov, **ex)
         _run_all(specs, args.jobs, redo)
-    elif args.cmd == "study":
-        names = args.only.split(",") if args.only else list(STUDY)
-        specs = []
-        for v in names:
-            specs += experiment_specs("menagerie17", args.seeds, f"study-{v}",
-                                      list(STUDY[v][1]), **ex)
-        _run_all(specs, args.jobs, redo)
     elif args.cmd == "all":
         specs = []
         for name in EXPERIMENTS:
             specs += experiment_specs(name, args.seeds, **ex)
         specs += loo_specs(args.seeds, **ex)
-        if not args.skip_ablation:
+        if not args.skip_ablation:  # every seed at 2 and 4 robots, the first for the LOO
             for v, (_, ov) in ABLATIONS.items():
+                if v == "default":
+                    continue
                 for exp in ("menagerie2", "menagerie4"):
                     specs += experiment_specs(exp, args.seeds, v, list(ov), **ex)
+                specs += loo_specs(args.seeds[:1], variant=v, extra=list(ov), **ex)
         _run_all(specs, args.jobs, redo)
         report(root=root)
     return 0

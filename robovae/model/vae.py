@@ -282,14 +282,6 @@ class RoboVAE(L.LightningModule):
                      on_epoch=True, on_step=False, sync_dist=True)
         return terms["loss"]
 
-    def transfer_batch_to_device(self, batch, device: torch.device, dataloader_idx: int):
-        """Robot batches move with PyG's own ``Batch.to`` (a no-op when they are already
-        there); Lightning's default walks every attribute of the batch (names, sources, ...)
-        through ``apply_to_collection``, a few milliseconds per step on the CPU."""
-        if isinstance(batch, Batch):
-            return batch if batch.x.device == device else batch.to(device)
-        return super().transfer_batch_to_device(batch, device, dataloader_idx)
-
     def training_step(self, batch: Batch, batch_idx: int) -> Tensor:
         """One optimisation step: the loss of :meth:`forward` on a (possibly augmented) batch."""
         return self._step(batch, "train", batch_idx)

@@ -100,6 +100,20 @@ def test_datamodule_split_by_fraction(cache_root):
     assert len(dm.test_set) == round(0.2 * len(dm.dataset))
 
 
+def test_batches_move_with_pyg(cache_root):
+    """A robot batch already on the device is handed on as it is (no per-attribute walk), and
+    other batches (the latent indices of ``robovae predict``) take Lightning's default."""
+    import torch
+    from torch_geometric.data import Batch
+
+    dm = RobotDataModule(["zoo"], root=str(cache_root), val_fraction=0.2, test_fraction=0.2)
+    dm.setup("fit")
+    batch = Batch.from_data_list(list(dm.train_set)[:3])
+    assert dm.transfer_batch_to_device(batch, torch.device("cpu"), 0) is batch
+    moved = dm.transfer_batch_to_device({"index": torch.arange(3)}, torch.device("cpu"), 0)
+    assert torch.equal(moved["index"], torch.arange(3))
+
+
 def test_describe(cache_root):
     ds = RobotDataset(cache_root, ["zoo"], progress=False)
     text = describe(ds.by_name("gym_ant"), "paper34")

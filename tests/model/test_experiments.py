@@ -51,7 +51,8 @@ def test_menagerie2_trains_scores_and_loads(tmp_path, menagerie_dir, cache_root)
     header = next(csv.reader((spec.out / "metrics.csv").open()))
     assert "train/loss" in header and "val/RA" in header
     model = load_model(spec.out / "checkpoints" / "last.ckpt")
-    assert model.hparams.feature_shift == 0.5
+    hp = model.hparams  # the config's model block reached the checkpoint
+    assert hp.node_latent_dim == 32 and hp.local_heads and hp.feature_noise == 0.5
     ex.loss_curve_png(spec.out / "metrics.csv", tmp_path / "curve.png", "smoke")
     assert (tmp_path / "curve.png").stat().st_size > 1000
 
@@ -97,7 +98,7 @@ def test_loo_compare_table_puts_variants_side_by_side(tmp_path):
             top = 10.0 if r["variant"] == "default" else 2.0 + r["seed"]
             log.write_text(f"epoch,train/topo,val/topo\n9,1.0,\n9,,99.0\n19,,{top}\n")
             r["metrics_csv"] = str(log)
-    table = ex.loo_compare_table(results)
+    table = ex.loo_compare_table(results, ("default", "surgery"))
     assert "| RA default | RA surgery | RA_true default | RA_true surgery | " \
            "topology loss default | topology loss surgery |" in table
     assert "| go2 | 26 | 50.0 ± 0.0 % | 75.0 ± 35.4 % | 50.0 ± 0.0 % | 75.0 ± 35.4 % | " \
@@ -109,6 +110,8 @@ def test_loo_compare_table_puts_variants_side_by_side(tmp_path):
     assert math.isnan(ex.last_logged(log, "val/RA"))
     assert "seeds 0,1" in table
     assert "| RA default |" in ex.loo_compare_table(results, ("default", "nope"))
+    assert "| RA paper | RA previous | RA default |" in ex.loo_compare_table(
+        [_fake("loo", 0, n, 1.0, variant=v) for v in ex.LOO_COMPARE for n in ex.MENAGERIE17])
     assert ex.loo_compare_table([], ("default",)).count("\n") == 1  # header only
 
 
@@ -120,48 +123,19 @@ def test_loo_specs_hold_out_one_robot():
     assert specs[2].out == Path("r/loo/default/barkour_v0/seed0")
 
 
-def test_procedural_variant_adds_procedural_robots_to_the_training_split(tmp_path, menagerie_dir,
-                                                                      cache_root):
-    """``surgery_procedural``: its ``--data.train_names+=proc_*`` appends to the names the
-    leave-one-out runner sets, so the held-out robot stays out and the procedural robots go in
-    (here 3 of them instead of the variant's 100, to stay fast)."""
-    (spec,) = ex.loo_specs([0], robots=["z1"], variant="surgery_procedural",
-                           extra=[*ex.ABLATIONS["surgery_procedural"][1],
-                                  f"--data.root={tmp_path / 'cache'}",
-                                  f'--data.sources=["dir:{menagerie_dir}",'
-                                  '"procedural:n=3,seed=0"]',
-                                  "--model.hidden_dim=16", "--model.latent_dim=4"],
-                           epochs=1, root=tmp_path)
-    result = ex.run_one(spec)
-    train = result["train_names"]
-    assert len(train) == 19 and "z1" not in train
-    assert sorted(n for n in train if n.startswith("proc_")) == \
-        ["proc_hexapod_00001", "proc_humanoid_00002", "proc_quadruped_00000"]
-    assert result["test"][0]["name"] == "z1" and result["hparams"]["tree_surgery"] == 0.5
+@pytest.mark.parametrize("variant", list(ex.ABLATIONS))
+def test_ablation_variants_are_valid_cli_overrides(variant, capsys):
+    """Every variant's overrides parse on top of the configs and say what they change."""
+    from robovae.cli import main
 
-
-def test_study_table_reads_each_runs_resolved_config(tmp_path):
-    """The study rows show the settings a run was trained with (its config.yaml), not the
-    current config file."""
-    results = []
-    for variant, inputs, lr, batch, fre in (("study-features_aug_lr3_b17", "features", 0.003,
-                                             17, 0.03), ("default", "types", 0.006, 6, 5e-4)):
-        run = tmp_path / variant / "seed0"
-        run.mkdir(parents=True)
-        (run / "config.yaml").write_text(yaml.safe_dump({
-            "model": {"decoder_inputs": inputs, "lr": lr, "beta": 1e-4,
-                      "feature_shift": 0.5 if inputs == "features" else 0.0,
-                      "feature_noise": 0.1 if inputs == "features" else 0.0},
-            "data": {"batch_size": batch},
-            "trainer": {"gradient_clip_val": 10.0 if inputs == "types" else None}}))
-        r = _fake("menagerie17", 0, "go2", 1.0)
-        r.update(variant=variant, metrics_csv=str(run / "metrics.csv"), epochs=1500)
-        r["test"][0]["fre"] = r["summary"]["fre"] = fre
-        results.append(r)
-    text = ex.study_table(results)
-    rows = {line.split(" | ")[0]: line for line in text.splitlines()[2:]}
-    assert set(rows) == {"| features_aug_lr3_b17", "| **menagerie17.yaml**"}
-    assert "| features | shift 0.5, noise 0.1 | 0.003 | 17 | no |" in rows["| features_aug_lr3_b17"]
-    assert "| types | no | 0.006 | 6 | 10.0 |" in rows["| **menagerie17.yaml**"]
-    assert "| 0.0005 | 0.0005 | 0.0005 |" in rows["| **menagerie17.yaml**"]
-    assert list(rows)[-1] == "| **menagerie17.yaml**"  # the config comes last
+    with pytest.raises(SystemExit) as e:
+        main(["fit", "--config", str(REPO / "configs" / "loo17.yaml"),
+              *ex.ABLATIONS[variant][1], "--print_config"])
+    assert e.value.code == 0
+    model = yaml.safe_load(capsys.readouterr().out)["model"]
+    latents = model["node_latent_dim"] > 0
+    assert latents == (variant not in ("paper", "previous", "no_node_latents"))
+    assert model["local_heads"] == (latents and variant != "context_heads")
+    assert model["node_structure"] == (variant != "no_structure")
+    assert (model["tree_surgery"] > 0) == (variant not in ("paper", "previous", "no_surgery"))
+    assert (model["feature_noise"] > 0) == (variant not in ("paper", "no_augment"))
