@@ -290,7 +290,7 @@ def loss_curve_png(metrics_csv: str | Path, out: str | Path, title: str) -> Path
     fig, ax = plt.subplots(figsize=(7, 3.6))
     for key, label in (("train/loss", "total"), ("train/topo", "topology BCE"),
                        ("train/feat", "feature MSE"), ("train/type", "type CE"),
-                       ("train/kl", "KL")):
+                       ("train/kl", "KL"), ("train/kl_nodes", "node KL")):
         pts = [(int(r["epoch"]), float(r[key])) for r in rows if r.get(key)]
         if pts:
             ax.plot(*zip(*pts), label=label, lw=1)

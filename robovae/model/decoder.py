@@ -296,12 +296,13 @@ class TreeDecoder(nn.Module):
             messages = tuple(t[0] for t in level_messages([self.cell], px[None], sched, 0))
         down, total, sdown = messages
         node, count, target, which, graph = decision_index(sched)
-        inward_t = torch.cat([sdown, total]).index_select(0, which)
         w = w if self.node_latent_dim else None
-        local = self.topo.local
-        logits = self.topo(None if local else xin.index_select(0, node),
-                           None if local else self.topo.zterm(z).index_select(0, graph),
-                           None if local else inward_t, sched.depth.index_select(0, node), count,
+        if self.topo.local:  # reads the deciding node's latent and context only
+            x_t = zw_t = inward_t = None
+        else:
+            x_t, zw_t = xin.index_select(0, node), self.topo.zterm(z).index_select(0, graph)
+            inward_t = torch.cat([sdown, total]).index_select(0, which)
+        logits = self.topo(x_t, zw_t, inward_t, sched.depth.index_select(0, node), count,
                            None if w is None else w.index_select(0, node))
         h = down.index_select(0, sched.inv)
         feat, types = self.node_heads(self.W1_l(z).index_select(0, sched.graph), h, w)
@@ -380,10 +381,11 @@ class TreeDecoder(nn.Module):
                 break
             i = cur[act]
             inward = buf.down[i] + buf.csum[i]
-            local = self.topo.local
-            logit = self.topo(None if local else self.node_inputs(buf.x[i], buf.type[i]),
-                              None if local else zt[act], None if local else inward,
-                              buf.depth[i], buf.nchild[i], buf.w[i])
+            if self.topo.local:
+                logit = self.topo(None, None, None, buf.depth[i], buf.nchild[i], buf.w[i])
+            else:
+                logit = self.topo(self.node_inputs(buf.x[i], buf.type[i]), zt[act], inward,
+                                  buf.depth[i], buf.nchild[i], buf.w[i])
             expand = (logit > 0) & (buf.depth[i] < max_depth)
             pxi = buf.px[i]
             s = torch.where(expand[:, None], inward, buf.csum[i])

@@ -71,10 +71,16 @@ class TreeEncoder(nn.Module):
     def forward(self, batch: Data, sched: TreeSchedule | None = None) -> tuple[Tensor, Tensor]:
         """``(mu, logvar)``, ``[B, latent]`` each, for a ``Batch`` (or one ``Data``)."""
         sched = tree_schedule(batch) if sched is None else sched
-        x = batch.x.index_select(0, sched.order)  # level order
+        return self.readout(*self.messages(batch, sched), sched)
+
+    def messages(self, batch: Data, sched: TreeSchedule) -> tuple[Tensor, Tensor]:
+        """eq. 4–5 alone: ``(x, inward)`` in level order, the features ``[N, d]`` and the sum
+        of every message a node receives ``[N, H]`` (the inputs of :meth:`readout` and
+        :meth:`node_readout`)."""
+        x = batch.x.index_select(0, sched.order)
         px = self.cell.project(x, self.proj.weight)
         _, total, _ = level_messages([self.cell], px[None], sched, 1)
-        return self.readout(x, total[0], sched)
+        return x, total[0]
 
     def readout(self, x: Tensor, inward: Tensor, sched: TreeSchedule) -> tuple[Tensor, Tensor]:
         """eq. 5–7 and the heads from level-order ``x`` (``[N, d]``) and ``inward`` (``[N, H]``:

@@ -343,14 +343,12 @@ class RoboVAE(L.LightningModule):
         nb = self.normalized(batch.to(self.device))
         enc = self.encoder
         sched = tree_schedule(nb)
-        x = nb.x.index_select(0, sched.order)
-        px = enc.cell.project(x, enc.proj.weight)
-        _, total, _ = level_messages([enc.cell], px[None], sched, 1)
-        mu, _ = enc.readout(x, total[0], sched)
+        x, inward = enc.messages(nb, sched)
+        mu, _ = enc.readout(x, inward, sched)
         counts = torch.bincount(sched.graph, minlength=sched.num_graphs).tolist()
         if not enc.node_latent_dim:
             return mu, [mu.new_zeros(n, 0) for n in counts]
-        w_mu, _ = enc.node_readout(x, total[0], sched, nb.node_type)
+        w_mu, _ = enc.node_readout(x, inward, sched, nb.node_type)
         return mu, list(torch.split(w_mu, counts))
 
     def check_latents(self, z: Tensor) -> Tensor:
