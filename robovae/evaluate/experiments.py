@@ -464,6 +464,24 @@ def ablation_table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def decoded_size_table(results: list[dict], experiment: str = "menagerie4") -> str:
+    """Markdown table: per ablation variant, the nodes of the test robot's greedy reconstruction
+    in every seed of ``experiment`` against its true size, with RA, RA_true and FRE. A decoded
+    tree larger than the true one is the paper's "extra limb" (RA_true stays high, RA drops)."""
+    lines = ["| variant | true nodes | decoded nodes (per seed) | RA | RA_true | FRE |",
+             "|---" * 6 + "|"]
+    for v in ABLATIONS:
+        rs = sorted(_group(results, experiment=experiment, variant=v), key=lambda r: r["seed"])
+        ts = [r["test"][0] for r in rs]
+        if not ts:
+            continue
+        lines.append(f"| {v} | {ts[0]['n_true']} | "
+                     f"{', '.join(str(t['n_pred']) for t in ts)} | "
+                     f"{_pct([t['ra'] for t in ts])} | {_pct([t['ra_true'] for t in ts])} | "
+                     f"{_ms([t['fre'] for t in ts], '{:.2g}')} |")
+    return "\n".join(lines)
+
+
 def _replace_block(text: str, key: str, body: str) -> str:
     start, end = f"<!-- auto:{key} -->", f"<!-- /auto:{key} -->"
     if start not in text:
@@ -488,6 +506,7 @@ def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     text = _replace_block(text, "loo", loo_table(results))
     text = _replace_block(text, "loo_compare", loo_compare_table(results, LOO_COMPARE))
     text = _replace_block(text, "ablation", ablation_table(results))
+    text = _replace_block(text, "extra_limb", decoded_size_table(results, "menagerie4"))
     doc.write_text(text)
     print(f"wrote {doc}")
 

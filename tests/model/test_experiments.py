@@ -115,6 +115,16 @@ def test_loo_compare_table_puts_variants_side_by_side(tmp_path):
     assert ex.loo_compare_table([], ("default",)).count("\n") == 1  # header only
 
 
+def test_decoded_size_table_lists_every_seed_per_variant():
+    results = [_fake("menagerie4", s, "go2", 1.0) for s in (1, 0)]
+    big = _fake("menagerie4", 0, "go2", 0.8, variant="paper")
+    big["test"][0]["n_pred"] = 32
+    table = ex.decoded_size_table([*results, big, _fake("menagerie2", 0, "go2", 0.1)])
+    assert "| default | 26 | 26, 26 | 100.0 ± 0.0 % |" in table
+    assert "| paper | 26 | 32 | 80.0 % |" in table
+    assert "| previous |" not in table and table.count("\n") == 3
+
+
 def test_loo_specs_hold_out_one_robot():
     specs = ex.loo_specs([0, 1], robots=["go2", "barkour v0"], root=Path("r"))
     assert len(specs) == 4
