@@ -115,6 +115,20 @@ def test_loo_compare_table_puts_variants_side_by_side(tmp_path):
     assert ex.loo_compare_table([], ("default",)).count("\n") == 1  # header only
 
 
+def test_ablation_table_scores_full_and_hard_leave_one_out():
+    results = [_fake("menagerie2", s, "go2", 1.0) for s in (0, 1)]
+    results += [_fake("loo", 0, n, 1.0 if n in ex.LOO_HARD[:3] else 0.5) for n in ex.MENAGERIE17]
+    results += [_fake("loo", 1, n, 0.0) for n in ex.MENAGERIE17]  # the lowest seed counts
+    results += [_fake("loo", 0, n, 0.25, variant="paper") for n in ex.LOO_HARD]
+    table = ex.ablation_table(results)
+    mean17 = 100 * (3 + 14 * 0.5) / 17
+    assert (f"| 100.0 ± 0.0 % / 100.0 ± 0.0 % / 0.01 ± 0 | n/a | {mean17:.1f} % / 3 of 17 | "
+            "75.0 % / 3 of 6 |") in table
+    row = next(line for line in table.splitlines() if line.startswith("| paper |"))
+    assert row.endswith("| n/a | n/a | n/a | 25.0 % / 0 of 6 |")
+    assert table.count("\n") == len(ex.ABLATIONS) + 1
+
+
 def test_decoded_size_table_lists_every_seed_per_variant():
     results = [_fake("menagerie4", s, "go2", 1.0) for s in (1, 0)]
     big = _fake("menagerie4", 0, "go2", 0.8, variant="paper")
