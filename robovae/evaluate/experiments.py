@@ -322,7 +322,7 @@ def experiments_table(results: list[dict], variant: str = "default") -> str:
     """Markdown table: one row per experiment, the paper's number beside ours (mean ±
     spread over seeds)."""
     lines = ["| experiment | paper | RA | RA_true | exact | FRE | seeds | epochs | fit wall (s) "
-             "| load | command |", "|---" * 10 + "|"]
+             "| load | command |", "|---" * 11 + "|"]
     for name, e in EXPERIMENTS.items():
         rs = sorted(_group(results, experiment=name, variant=variant), key=lambda r: r["seed"])
         if not rs:

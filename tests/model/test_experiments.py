@@ -129,6 +129,18 @@ def test_ablation_table_scores_full_and_hard_leave_one_out():
     assert table.count("\n") == len(ex.ABLATIONS) + 1
 
 
+def test_every_report_table_has_as_many_separators_as_columns():
+    results = [_fake(e, 0, "go2", 1.0) for e in ex.EXPERIMENTS]
+    results += [_fake("loo", 0, n, 1.0, variant=v) for v in ex.LOO_COMPARE
+                for n in ex.MENAGERIE17]
+    for table in (ex.experiments_table(results), ex.per_robot_table(results, "menagerie4"),
+                  ex.loo_table(results), ex.loo_compare_table(results),
+                  ex.ablation_table(results), ex.decoded_size_table(results)):
+        head, sep, *rows = table.splitlines()
+        assert head.count("|") == sep.count("|"), head
+        assert all(row.count("|") == head.count("|") for row in rows), table
+
+
 def test_decoded_size_table_lists_every_seed_per_variant():
     results = [_fake("menagerie4", s, "go2", 1.0) for s in (1, 0)]
     big = _fake("menagerie4", 0, "go2", 0.8, variant="paper")
