@@ -287,7 +287,7 @@ def loss_curve_png(metrics_csv: str | Path, out: str | Path, title: str) -> Path
 
     with open(metrics_csv, newline="") as f:
         rows = list(csv.DictReader(f))
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+    fig, ax = plt.subplots(figsize=(7.6, 3.6))
     for key, label in (("train/loss", "total"), ("train/topo", "topology BCE"),
                        ("train/feat", "feature MSE"), ("train/type", "type CE"),
                        ("train/kl", "KL"), ("train/kl_nodes", "node KL")):
@@ -297,19 +297,19 @@ def loss_curve_png(metrics_csv: str | Path, out: str | Path, title: str) -> Path
     ax.set_yscale("log")
     ax.set_xlabel("epoch")
     ax.set_ylabel("per-robot loss (train)")
+    handles = ax.get_legend_handles_labels()[0]
     ra = [(int(r["epoch"]), float(r["val/RA"])) for r in rows if r.get("val/RA")]
     if ra:
         ax2 = ax.twinx()
-        ax2.plot(*zip(*ra), "k.--", label="val RA", lw=0.8)
+        handles += ax2.plot(*zip(*ra), "k.--", label="val RA", lw=0.8)
         ax2.set_ylim(0, 1.05)
         ax2.set_ylabel("val RA")
-        ax2.legend(loc="upper center", fontsize=7)
-    ax.legend(loc="upper right", fontsize=7)
+    # one legend, outside the axes: it never hides a curve
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.1, 1.0), fontsize=7)
     ax.set_title(title, fontsize=9)
-    fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return out
 
