@@ -70,6 +70,7 @@ EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
 )}
 
 _NO_LATENTS = ("--model.node_latent_dim=0", "--model.local_heads=false")
+_NO_AUGMENT = ("--model.feature_shift=0", "--model.feature_noise=0")
 _PAPER_DECODER = (*_NO_LATENTS, "--model.decoder_inputs=features", "--model.tree_surgery=0")
 
 #: Ablation variants: name -> (description, CLI overrides on top of the configs). The 2- and
@@ -81,7 +82,7 @@ ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
                 "(shift 1.0, noise 0.5), tree surgery 0.5", ()),
     "paper": ("eq. 4-13 as published: one latent z, the decoder reads features, no depth/count "
               "context, no augmentation", (*_PAPER_DECODER, "--model.topo_context=false",
-                                           "--model.feature_shift=0", "--model.feature_noise=0")),
+                                           *_NO_AUGMENT)),
     "previous": ("this project before node latents: the paper + depth/count context + feature "
                  "augmentation (shift 0.5, noise 0.1)",
                  (*_PAPER_DECODER, "--model.feature_shift=0.5", "--model.feature_noise=0.1")),
@@ -92,8 +93,7 @@ ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
     "no_structure": ("node latents with local heads, but the node posterior does not read the "
                      "node's type and child count", ("--model.node_structure=false",)),
     "no_surgery": ("the configs without tree surgery", ("--model.tree_surgery=0",)),
-    "no_augment": ("the configs without feature augmentation",
-                   ("--model.feature_shift=0", "--model.feature_noise=0")),
+    "no_augment": ("the configs without feature augmentation", _NO_AUGMENT),
 }
 
 

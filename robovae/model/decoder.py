@@ -381,11 +381,10 @@ class TreeDecoder(nn.Module):
                 break
             i = cur[act]
             inward = buf.down[i] + buf.csum[i]
-            if self.topo.local:
-                logit = self.topo(None, None, None, buf.depth[i], buf.nchild[i], buf.w[i])
-            else:
-                logit = self.topo(self.node_inputs(buf.x[i], buf.type[i]), zt[act], inward,
-                                  buf.depth[i], buf.nchild[i], buf.w[i])
+            local = self.topo.local  # a local head reads neither x, z nor the messages
+            logit = self.topo(None if local else self.node_inputs(buf.x[i], buf.type[i]),
+                              None if local else zt[act], inward, buf.depth[i], buf.nchild[i],
+                              buf.w[i])
             expand = (logit > 0) & (buf.depth[i] < max_depth)
             pxi = buf.px[i]
             s = torch.where(expand[:, None], inward, buf.csum[i])
@@ -456,11 +455,13 @@ class _NodeLatents:
         """Latents of the new nodes number ``t`` of latents ``rows`` (parent message ``h``)."""
         if not self.dim:
             return h.new_zeros(rows.numel(), 0)
+        have = t < self.lens[rows]
+        if bool(have.all()):  # reconstruction: every node's latent is given, no prior needed
+            return self.table[rows, t]
         mu, logvar = self.dec.node_prior(self.zp[rows], h, w_parent)
         w = mu
         if self.noise is not None:
             w = mu + torch.exp(0.5 * logvar) * self.noise[rows, t]
-        have = t < self.lens[rows]
         if bool(have.any()):
             tt = t.clamp_max(max(self.table.shape[1] - 1, 0))
             w = torch.where(have[:, None], self.table[rows, tt], w)

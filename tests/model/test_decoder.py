@@ -33,6 +33,13 @@ def random_tree(n: int, rng: random.Random, pop: float = 0.5):
                      torch.randn(n, FULL.dim), FULL)
 
 
+def random_batch(count: int = 8, max_nodes: int = 25, seed: int = 0) -> Batch:
+    """``count`` random trees of 1..``max_nodes`` nodes and random shapes, batched."""
+    rng = random.Random(seed)
+    return Batch.from_data_list([random_tree(rng.randint(1, max_nodes), rng, rng.random())
+                                 for _ in range(count)])
+
+
 def dfs_trace(parent: list[int]) -> list[tuple[int, int]]:
     """(deciding node, label) of the true depth-first expand/backtrack sequence."""
     kids, out = children(parent), []
@@ -160,9 +167,7 @@ def test_topo_context_off_is_eq9() -> None:
 @pytest.mark.parametrize("latent_inputs", [False, True])
 def test_every_parameter_gets_a_gradient(latent_inputs: bool) -> None:
     torch.manual_seed(0)
-    rng = random.Random(0)
-    batch = Batch.from_data_list([random_tree(rng.randint(1, 25), rng, rng.random())
-                                  for _ in range(8)])
+    batch = random_batch()
     enc = TreeEncoder(FULL.dim, 32, 8)
     dec = TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask(),
                       latent_inputs=latent_inputs)

@@ -16,7 +16,7 @@ from robovae.model.decoder import TreeDecoder, soft_clamp
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
 from robovae.model.tree import tree_schedule
-from tests.model.test_decoder import FULL, assert_decoded_as_scored, random_tree
+from tests.model.test_decoder import FULL, assert_decoded_as_scored, random_batch, random_tree
 
 DW = 6
 
@@ -145,19 +145,13 @@ def test_soft_clamp_bounds_log_variances() -> None:
 @pytest.mark.parametrize("local", [True, False])
 def test_every_parameter_gets_a_gradient_with_node_latents(local: bool) -> None:
     torch.manual_seed(0)
-    rng = random.Random(0)
-    batch = Batch.from_data_list([random_tree(rng.randint(1, 25), rng, rng.random())
-                                  for _ in range(8)])
+    batch = random_batch()
     enc = TreeEncoder(FULL.dim, 32, 8, node_latent_dim=DW, num_types=3)
     dec = TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask(), inputs="types",
                       node_latent_dim=DW, local_heads=local)
     sched = tree_schedule(batch)
     mu, logvar = enc(batch, sched)
-    x = batch.x.index_select(0, sched.order)
-    from robovae.model.tree import level_messages
-
-    _, total, _ = level_messages([enc.cell], enc.cell.project(x, enc.proj.weight)[None], sched, 1)
-    wm, wlv = enc.node_readout(x, total[0], sched, batch.node_type)
+    wm, wlv = enc.node_readout(*enc.messages(batch, sched), sched, batch.node_type)
     out = dec.teacher_forcing(reparametrize(mu, logvar), batch, sched,
                               w=reparametrize(wm, wlv))
     vae_loss(out, batch, mu, logvar, 1.0, wm, wlv)["loss"].backward()
@@ -171,16 +165,12 @@ def test_node_posterior_reads_type_and_child_count() -> None:
     torch.manual_seed(0)
     enc = TreeEncoder(FULL.dim, 32, 8, node_latent_dim=DW, num_types=3)
     x = torch.zeros(4, FULL.dim)  # no feature tells the nodes apart
-    from robovae.model.tree import level_messages
 
     def posterior(parent: list[int], types: list[int]) -> torch.Tensor:
         t = tree_data(parent, types, x[:len(parent)], FULL)
         t.x = torch.zeros_like(t.x)
         sched = tree_schedule(t)
-        xl = t.x.index_select(0, sched.order)
-        _, total, _ = level_messages([enc.cell], enc.cell.project(xl, enc.proj.weight)[None],
-                                     sched, 1)
-        return enc.node_readout(xl, total[0], sched, t.node_type)[0]
+        return enc.node_readout(*enc.messages(t, sched), sched, t.node_type)[0]
 
     with torch.no_grad():
         a = posterior([-1, 0, 0], [0, 1, 1])
