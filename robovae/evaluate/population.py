@@ -12,7 +12,7 @@ generated robots, any dataset. Each robot is summarised by a dict of **descripto
 ``limbs``           subtrees of the trunk that contain a joint (:func:`~robovae.data.graph.limbs`)
 ``mass``            total mass, kg (sum of ``link.mass``)
 ``dof``             degrees of freedom: free 6, ball 3, hinge/slide 1 (joint types from
-                    :func:`~robovae.generate.rules.joint_types`: inferred in ``paper34``)
+                    :func:`~robovae.generate.bodies.joint_types`: inferred in ``paper34``)
 ``limb_length``     mean limb length, m: per limb, the longest chain of link offsets
                     ``|link.pos|`` from the trunk to a leaf link plus the leaf's extent
                     (twice its largest ``link.size``)
@@ -128,7 +128,7 @@ def limb_lengths(data: RobotData, feature_set: str | FeatureSet | None = None) -
 
 def dof(data: RobotData, feature_set: str | FeatureSet | None = None) -> int:
     """Degrees of freedom: free 6, ball 3, hinge and slide 1 (types as the writer infers them)."""
-    from robovae.generate.rules import joint_types
+    from robovae.generate.bodies import joint_types
 
     fs = _fs(data, feature_set)
     if "joint" not in fs.node_types:
@@ -200,7 +200,7 @@ def robot_category(name: str = "", data: RobotData | None = None) -> str:
     if data is None or data.num_nodes == 0:
         return "other"
     d = descriptors(data)
-    from robovae.generate.rules import joint_types
+    from robovae.generate.bodies import joint_types
 
     floating = (data.node_type[0] == JOINT and joint_types(data, _fs(data, None))[0] == "free")
     per_limb = (d["joints"] - (1 if floating else 0)) / max(d["limbs"], 1)

@@ -3,9 +3,8 @@
 A robot is ``valid`` when all of these hold (SPEC §4, validity):
 
 1. ``compile``: the file compiles with MuJoCo (a floor plane is added when the file has none);
-   ``degenerate``: it has no joint besides a free base — a rigid body is not a robot (stricter
-   than SPEC §4, which only asks for compiling and simulating: a decoder collapsing to one-node
-   "robots" would otherwise score 100 %);
+   ``degenerate``: it has at least one joint besides a free base (a rigid body is not a
+   robot);
 2. ``self_penetration``: at rest (``mj_forward`` of the initial pose) no two robot geoms
    penetrate deeper than ``penetration_tol`` metres (contacts with the floor do not count);
 3. ``nan_inf``: qpos/qvel stay finite during ``duration`` seconds of simulation at the model's
@@ -91,7 +90,10 @@ def _compile(path: Path) -> mujoco.MjModel:
 
 def validate_robot(path: str | Path, duration: float = 1.0, penetration_tol: float = 0.01,
                    energy_factor: float = 100.0) -> Validation:
-    """Validate one robot file (``robot.xml`` or a ``scene.xml`` including it)."""
+    """Validate one robot file (``robot.xml`` or a ``scene.xml`` including it) with the checks
+    of the module docstring: ``duration`` in s, ``penetration_tol`` in m, ``energy_factor``
+    times the energy scale. A robot that fails (also one whose file does not load) is not an
+    error: the first failed check is the result's ``reason``."""
     path = Path(path)
     fail = lambda reason, detail, **kw: Validation(str(path), False, reason,  # noqa: E731
                                                     " ".join(str(detail).split()), **kw)

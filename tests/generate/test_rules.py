@@ -17,21 +17,11 @@ from robovae.data.graph import RobotData, tree_data
 from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
-from robovae.generate.rules import (
-    DEFAULT_GEOM_RADIUS,
-    GEOM_SIZE_COMPONENTS,
-    HINGE_LIMIT,
-    MIN_INERTIA,
-    MIN_MASS,
-    MIN_RANGE_WIDTH,
-    MIN_SIZE,
-    RULES,
-    apply_rules,
-    check_rules,
-    floating_base,
-    joint_types,
-    link_structure,
-)
+from robovae.generate.bodies import joint_types, link_structure
+from robovae.generate.rules import RULES, apply_rules, check_rules, floating_base
+from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS, MIN_SIZE
+from robovae.generate.rules_joints import HINGE_LIMIT, MIN_RANGE_WIDTH
+from robovae.generate.rules_mass import MIN_INERTIA, MIN_MASS
 from robovae.generate.writer import graph_to_spec
 from tests.conftest import random_tree
 

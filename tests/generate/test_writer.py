@@ -30,18 +30,10 @@ from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.generate import writer as writer_module
-from robovae.generate.rules import (
-    apply_rules,
-    link_structure,
-)
-from robovae.generate.writer import (
-    DEFAULT_CTRLRANGE,
-    DEFAULT_GEAR,
-    WriteResult,
-    graph_to_spec,
-    scene_xml,
-    write_robot,
-)
+from robovae.generate.bodies import link_structure
+from robovae.generate.rules import apply_rules
+from robovae.generate.spec_builder import DEFAULT_CTRLRANGE, DEFAULT_GEAR, WRITER_FIXES
+from robovae.generate.writer import WriteResult, graph_to_spec, scene_xml, write_robot
 from tests.conftest import random_tree
 from tests.reliability.strategies import assert_same_graph as assert_same
 from tests.reliability.strategies import roundtrip_expected as expected
@@ -298,7 +290,7 @@ def test_noisy_real_robot_compiles_and_keeps_its_topology():
     gen = torch.Generator().manual_seed(0)
     g.x = torch.where(g.x_mask, g.x + 0.3 * torch.randn(g.x.shape, generator=gen), g.x)
     spec, fired = graph_to_spec(g, "full")
-    assert fired and not set(fired) & set(writer_module.WRITER_FIXES)
+    assert fired and not set(fired) & set(WRITER_FIXES)
     back = model_to_graph(spec.compile(), "full")
     assert torch.equal(back.parent, g.parent) and torch.equal(back.node_type, g.node_type)
     repaired, _ = apply_rules(g, "full")

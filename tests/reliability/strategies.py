@@ -220,7 +220,7 @@ def roundtrip_expected(g, fs_name: str) -> np.ndarray:
     """The features a round trip must give back: ``g.x`` except ``paper34`` links without a
     geom (the writer's sphere) and, in ``full``, size components a primitive does not use."""
     from robovae.data.features import GEOM, GEOM_TYPES, LINK, get_feature_set
-    from robovae.generate.rules import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS
+    from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS
 
     fs = get_feature_set(fs_name)
     x = g.x.double().numpy().copy()

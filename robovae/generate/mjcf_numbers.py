@@ -1,0 +1,67 @@
+"""Numbers as MJCF output writes them, so a spec and its written file hold the same values.
+
+``MjSpec.to_xml`` writes every number with 6 significant digits (``%g``) and drops vector
+components 12 decades below the vector's largest one. The writer rounds values this way
+**before** they enter the spec (:func:`mjcf_round`, :func:`mjcf_round_vector`); constraints that
+rounding can break are re-established on the rounded values (:func:`rounded_inertia` for the
+triangle inequality of principal inertias).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["mjcf_round", "mjcf_round_up", "mjcf_round_vector", "rounded_inertia"]
+
+
+def mjcf_round(v: float) -> float:
+    """``v`` at the 6 significant digits ``MjSpec.to_xml`` writes; ``|v| < 1e-16`` → 0;
+    NaN/±Inf unchanged."""
+    v = float(v)
+    if not math.isfinite(v) or abs(v) < 1e-16:
+        return v if not math.isfinite(v) else 0.0
+    return float(f"{v:.6g}")
+
+
+def mjcf_round_vector(vec) -> list[float]:
+    """A vector as written: each component :func:`mjcf_round`-ed, components with
+    ``|a| ≤ 1e-12 · max |a|`` set to 0."""
+    arr = [float(a) for a in np.asarray(vec, dtype=float).ravel()]
+    big = max((abs(a) for a in arr if math.isfinite(a)), default=0.0)
+    return [0.0 if math.isfinite(a) and abs(a) <= 1e-12 * big else mjcf_round(a) for a in arr]
+
+
+def mjcf_round_up(v: float) -> float:
+    """The smallest 6-significant-digit number ≥ ``v``."""
+    q = mjcf_round(v)
+    step = 1e-6
+    while q < v:
+        q = mjcf_round(v * (1.0 + step) if v > 0 else v * (1.0 - step))
+        step *= 2.0
+    return q
+
+
+def rounded_inertia(inertia) -> tuple[list[float], bool]:
+    """A diagonal inertia as written that still satisfies ``a + b ≥ c`` for every permutation.
+
+    The vector is :func:`mjcf_round_vector`-ed; while the two smaller components ``a ≤ b`` fall
+    short of the largest ``c``, each is raised by half the deficit plus ``1e-6 c`` and rounded
+    up (:func:`mjcf_round_up`), at most 20 times.
+
+    Returns:
+        The written components and whether they had to move for the inequality.
+    """
+    out = mjcf_round_vector(inertia)
+    moved = False
+    for _ in range(20):
+        a, b, c = sorted(out)
+        if a + b >= c:
+            break
+        order = np.argsort(out, kind="stable")
+        deficit = c - a - b
+        for k in order[:2]:
+            out[k] = mjcf_round_up(out[k] + 0.5 * deficit + 1e-6 * c)
+        moved = True
+    return out, moved
