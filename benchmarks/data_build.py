@@ -14,9 +14,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from robovae.cli import format_table
 from robovae.data.dataset import RobotDataset
 from robovae.data.procedural import write_procedural
+from robovae.evaluate.tables import format_table
 
 
 def main() -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import torch
 
-from robovae.cli import format_table
+from robovae.evaluate.tables import format_table
 from robovae.generate.pipeline import generate, latent
 from robovae.generate.validate import validate_many
 from robovae.generate.writer import write_robot

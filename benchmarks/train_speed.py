@@ -30,9 +30,9 @@ import torch
 import yaml
 from torch_geometric.data import Batch
 
-from robovae.cli import format_table
 from robovae.data.dataset import RobotDataset
 from robovae.data.features import Normalizer
+from robovae.evaluate.tables import format_table
 from robovae.model.tree import encode_reference
 from robovae.model.vae import RoboVAE
 

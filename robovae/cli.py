@@ -16,17 +16,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from robovae.errors import RobovaeError
+from robovae.evaluate.tables import format_table
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
-
-
-def format_table(rows: list[dict], columns: Sequence[str]) -> str:
-    """Plain-text table with one header line; widths fit the content."""
-    cells = [[str(r.get(c, "")) for c in columns] for r in rows]
-    widths = [max([len(c)] + [len(row[i]) for row in cells]) for i, c in enumerate(columns)]
-    line = lambda vals: "  ".join(v.ljust(w) for v, w in zip(vals, widths)).rstrip()  # noqa: E731
-    return "\n".join([line(list(columns)), line(["-" * w for w in widths])]
-                     + [line(row) for row in cells])
 
 
 def cmd_data(args: argparse.Namespace) -> int:

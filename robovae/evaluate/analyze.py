@@ -42,6 +42,7 @@ from robovae.evaluate.population import (
     sample_files,
     summary,
 )
+from robovae.evaluate.tables import format_table
 from robovae.model.checkpoint import load_model, read_checkpoint
 from robovae.model.vae import RoboVAE
 
@@ -212,8 +213,6 @@ def _ms(s: dict) -> str:
 
 def format_report(result: dict) -> str:
     """The tables :func:`analyze` results print as (plain text)."""
-    from robovae.cli import format_table
-
     tr, sa, cmp_ = result["training"], result.get("samples"), result.get("comparison")
     lines = [f"training: {tr['what']}"]
     if sa:
