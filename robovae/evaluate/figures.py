@@ -9,8 +9,9 @@ from pathlib import Path
 
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.errors import RobovaeError
+from robovae.evaluate.graph_drawing import draw_graph
 from robovae.evaluate.metrics import reconstruction_metrics
-from robovae.evaluate.render import contact_sheet, draw_graph, side_by_side
+from robovae.evaluate.render import contact_sheet, side_by_side
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE

@@ -1,4 +1,5 @@
-"""Off-screen renders, contact sheets, side-by-sides and tree plots (robovae.evaluate.render)."""
+"""Off-screen renders, contact sheets and side-by-sides (robovae.evaluate.render), the scene
+and camera they use, and tree drawings (robovae.evaluate.graph_drawing)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,9 @@ from robovae.data.graph import tree_data
 from robovae.data.mjcf import load_robot
 from robovae.data.zoo import zoo_files
 from robovae.evaluate import render as R
+from robovae.evaluate.camera import auto_camera, camera_axes, robot_bounds, robot_points
+from robovae.evaluate.graph_drawing import draw_graph, tree_layout
+from robovae.evaluate.scene import scene_option
 
 REPO = Path(__file__).resolve().parents[2]
 GO2 = REPO.parent / "shared" / "menagerie" / "unitree_go2" / "go2.xml"
@@ -110,15 +114,15 @@ def test_auto_camera_fits_the_robot_at_any_scale() -> None:
     for scale in (0.01, 1.0, 30.0):
         spec = _legged_spec(scale)
         model = spec.compile()
-        cam = R.auto_camera(model)
+        cam = auto_camera(model)
         assert cam["azimuth"] == 135.0 and cam["elevation"] == -20.0
         assert 0.5 * scale < cam["distance"] < 5.0 * scale
         data = _forward(model)
-        lo, hi = R.robot_bounds(model, data)
+        lo, hi = robot_bounds(model, data)
         np.testing.assert_allclose(cam["lookat"], 0.5 * (lo + hi))
         # every bounding point projects inside the view, and the robot fills a good part of it
-        forward, up, right = R._camera_axes(cam["azimuth"], cam["elevation"])
-        rel = R._robot_points(model, data) - np.asarray(cam["lookat"])
+        forward, up, right = camera_axes(cam["azimuth"], cam["elevation"])
+        rel = robot_points(model, data) - np.asarray(cam["lookat"])
         depth = cam["distance"] + rel @ forward
         tan_y = np.tan(np.radians(model.vis.global_.fovy) / 2)
         u = np.abs(rel @ right) / depth / (tan_y * 4 / 3)
@@ -162,7 +166,7 @@ def test_render_menagerie_go2_without_meshes() -> None:
     _not_blank(img, 180, 240)
     # only collision geoms are left (group 3): they are shown
     model = load_robot(GO2).model
-    assert R._scene_option(model).geomgroup[3] == 1
+    assert scene_option(model).geomgroup[3] == 1
 
 
 def test_save_png_round_trip(tmp_path: Path) -> None:
@@ -215,7 +219,7 @@ def _small_tree():
 
 def test_tree_layout_is_tidy() -> None:
     data = _small_tree()
-    pos = R.tree_layout(data.parent)
+    pos = tree_layout(data.parent)
     assert pos[0][1] == 0.0 and pos[3][1] == -3.0  # root on top, y = -depth
     leaves = [3, 4, 6]
     assert [pos[i][0] for i in leaves] == [0.0, 1.0, 2.0]
@@ -225,11 +229,11 @@ def test_tree_layout_is_tidy() -> None:
 
 def test_draw_graph(tmp_path: Path) -> None:
     data = _small_tree()
-    out = R.draw_graph(data, tmp_path / "tree.png")
+    out = draw_graph(data, tmp_path / "tree.png")
     assert out.is_file()
     with Image.open(out) as im:
         assert im.size[0] > 100 and im.size[1] > 100
-    fig = R.draw_graph(data, title="mine")
+    fig = draw_graph(data, title="mine")
     assert fig.axes[0].get_title() == "mine"
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels == ["link (3)", "joint (2)", "geom (2)"]
