@@ -8,8 +8,9 @@
 - **samples** (optional): a folder of generated robots (``robovae generate --out DIR``; the
   valid robots of its manifest, loaded back from their ``robot.xml``).
 
-and reports, for each population, descriptor statistics
-(:mod:`robovae.evaluate.population`), latent statistics of the encoded means (Gaussian and
+(loaded by :func:`training_graphs`, :func:`sample_files` and :func:`load_graphs`). It reports,
+for each population, descriptor statistics (:mod:`robovae.evaluate.descriptors`,
+:mod:`robovae.evaluate.population`), latent statistics of the encoded means (Gaussian and
 k-NN entropy, effective dimensionality), MuJoCo behaviour (random-actuation state entropy and
 the standing test, :mod:`robovae.evaluate.behaviour`) on up to ``behaviour`` robots, and
 between the populations the KL per descriptor, MMD² and coverage.
@@ -29,20 +30,15 @@ import numpy as np
 import torch
 from torch_geometric.data import Batch
 
+from robovae.data.dataset import RobotDataset
 from robovae.data.graph import RobotData
+from robovae.data.mjcf import mjcf_to_graph
 from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
-from robovae.evaluate.population import (
-    DESCRIPTORS,
-    compare,
-    descriptors,
-    latent_stats,
-    load_graphs,
-    robot_category,
-    sample_files,
-    summary,
-)
+from robovae.evaluate.descriptors import DESCRIPTORS, descriptors, robot_category
+from robovae.evaluate.population import compare, latent_stats, summary
 from robovae.evaluate.tables import format_table
+from robovae.generate.pipeline import read_manifest
 from robovae.model.checkpoint import load_model, read_checkpoint
 from robovae.model.vae import RoboVAE
 
@@ -50,10 +46,12 @@ from robovae.model.vae import RoboVAE
 @torch.no_grad()
 def encode_means(model: RoboVAE, graphs: Sequence[RobotData], batch_size: int = 128
                  ) -> np.ndarray:
-    """Encoded means ``mu`` ``[N, latent_dim]`` of robot graphs (physical units).
+    """Encoded means ``mu`` ``[N, latent_dim]`` (float64) of robot graphs (physical units), in
+    batches of ``batch_size``.
 
-    Runs on one CPU thread: the encoder's per-level matrix products are small, and on a busy
-    machine two OpenMP threads made them ~70 times slower than one (measured on 2 cores).
+    On CPU the encoder runs with one torch thread (``torch.set_num_threads(1)``, restored
+    afterwards): its per-level matrix products are small (docs/generation.md, "Implementation
+    notes").
     """
     out = []
     threads = torch.get_num_threads()
@@ -71,9 +69,12 @@ def encode_means(model: RoboVAE, graphs: Sequence[RobotData], batch_size: int = 
 def training_graphs(model: RoboVAE, ckpt: str | Path | None = None,
                     sources: Sequence[str] | None = None, root: str | Path = "data_cache"
                     ) -> tuple[list[RobotData], str]:
-    """The checkpoint's training robots and a one-line description of where they came from."""
-    from robovae.data.dataset import RobotDataset
+    """The checkpoint's training robots and a one-line description of where they came from.
 
+    The dataset of ``sources`` (default: the checkpoint's data sources, else ``zoo``) in the
+    model's feature set, restricted to the robot names stored in the checkpoint (every robot of
+    the sources when none of those names is found).
+    """
     if not sources:
         dm = read_checkpoint(ckpt).get("datamodule_hyper_parameters", {}) if ckpt else {}
         sources = list(dm.get("sources") or ["zoo"])
@@ -85,6 +86,49 @@ def training_graphs(model: RoboVAE, ckpt: str | Path | None = None,
         graphs = list(ds)
         what = f"all {len(graphs)} robots of {', '.join(sources)} (no training names matched)"
     return graphs, what
+
+
+def load_graphs(paths: Sequence[str | Path], feature_set: str = "paper34",
+                names: Sequence[str] | None = None) -> tuple[list[RobotData], list[str]]:
+    """Robot graphs of files in ``feature_set`` (named ``names[k]``, else by file) and the
+    one-line messages of the files that failed (:class:`~robovae.errors.RobovaeError` or
+    ``ValueError``: collected, never raised)."""
+    graphs, errors = [], []
+    for k, p in enumerate(paths):
+        try:
+            graphs.append(mjcf_to_graph(p, feature_set,
+                                        name=names[k] if names is not None else None))
+        except (RobovaeError, ValueError) as e:
+            errors.append(str(e))
+    return graphs, errors
+
+
+def sample_files(folder: str | Path, valid_only: bool = True) -> list[tuple[str, Path]]:
+    """``[(name, robot.xml)]`` of a folder written by ``robovae generate``.
+
+    With a ``manifest.jsonl`` and ``valid_only``, only the robots it calls valid; without a
+    manifest, every ``robot_*/robot.xml`` (else every ``*.xml`` below the folder but
+    ``scene.xml``).
+
+    Raises:
+        RobovaeError: ``folder`` is not a folder.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise RobovaeError(f"robovae: {folder}: no such folder of samples")
+    records = read_manifest(folder)
+    if records:
+        out = []
+        for i, rec in sorted(records.items()):
+            if valid_only and rec.get("valid") is False:
+                continue
+            path = folder / rec.get("path", f"robot_{i:06d}/robot.xml")
+            if path.is_file():
+                out.append((rec.get("name") or f"robot_{i:06d}", path))
+        return out
+    files = sorted(folder.glob("robot_*/robot.xml")) or sorted(
+        p for p in folder.rglob("*.xml") if p.name != "scene.xml")
+    return [(p.parent.name if p.name == "robot.xml" else p.stem, p) for p in files]
 
 
 def _population(model: RoboVAE, graphs: Sequence[RobotData], files: Sequence[str | None],
@@ -162,8 +206,6 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
 
 
 def _manifest_counts(folder: Path) -> dict:
-    from robovae.generate.pipeline import read_manifest
-
     recs = read_manifest(folder)
     if not recs:
         return {}
@@ -287,5 +329,5 @@ def format_report(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["analyze", "encode_means", "format_report", "save_json", "to_json",
-           "training_graphs"]
+__all__ = ["analyze", "encode_means", "format_report", "load_graphs", "sample_files",
+           "save_json", "to_json", "training_graphs"]

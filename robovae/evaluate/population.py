@@ -1,30 +1,14 @@
-"""A statistical view of robot populations (paper §6.2): descriptors, divergences, latent
-entropy, effective dimensionality and coverage.
+"""Statistics of robot populations (paper §6.2): how two populations' descriptors differ, and
+how spread out a population's latent codes are.
 
 A *population* is a list of robot graphs — the training robots of a checkpoint, a folder of
-generated robots, any dataset. Each robot is summarised by a dict of **descriptors**
-(:func:`descriptors`):
+generated robots, any dataset — summarised by the descriptor records of
+:mod:`robovae.evaluate.descriptors`.
 
-=================== =================================================================
-``links``           link (body) nodes
-``joints``          joint nodes
-``depth``           depth of the tree (node levels below the root)
-``limbs``           subtrees of the trunk that contain a joint (:func:`~robovae.data.graph.limbs`)
-``mass``            total mass, kg (sum of ``link.mass``)
-``dof``             degrees of freedom: free 6, ball 3, hinge/slide 1 (joint types from
-                    :func:`~robovae.generate.bodies.joint_types`: inferred in ``paper34``)
-``limb_length``     mean limb length, m: per limb, the longest chain of link offsets
-                    ``|link.pos|`` from the trunk to a leaf link plus the leaf's extent
-                    (twice its largest ``link.size``)
-``limb_ratio``      shortest / longest limb length (1: all limbs alike; NaN below 2 limbs)
-``leg_body_ratio``  longest limb / trunk extent (twice the trunk's largest ``link.size``;
-                    NaN when the trunk has no geom)
-=================== =================================================================
+Comparing two populations (:func:`compare`):
 
-Population statistics (:func:`compare`):
-
-- **KL** per descriptor: ``KL(train ‖ samples)`` between histograms on shared bins (unit bins
-  for counts, 10 equal bins of the transformed value otherwise) with 0.5 added to every bin
+- **KL** per descriptor: ``KL(train ‖ samples)`` (nats) between histograms on shared bins (unit
+  bins for counts, 10 equal bins of the transformed value otherwise) with 0.5 added to every bin
   (Jeffreys prior) so that empty bins stay finite. The sum over descriptors is a sum of
   marginal KLs, not a joint KL.
 - **MMD²** (unbiased) with an RBF kernel on descriptor vectors standardised by the training
@@ -37,8 +21,8 @@ Population statistics (:func:`compare`):
 
 Latent statistics (:func:`latent_stats`) of a population's encoded means ``mu``:
 
-- **Gaussian entropy** ``½ log det(2πe Σ)`` of the Ledoit–Wolf shrunk covariance (full rank
-  even with fewer robots than latent dimensions, so populations of any size compare);
+- **Gaussian entropy** ``½ log det(2πe Σ)`` (nats) of the Ledoit–Wolf shrunk covariance (full
+  rank even with fewer robots than latent dimensions, so populations of any size compare);
 - **k-NN entropy** (Kozachenko–Leonenko, :func:`knn_entropy`);
 - **effective dimensionality**: participation ratio ``(Σλ)² / Σλ²`` of the PCA eigenvalues
   (1 when one direction holds all the variance, ``d`` when all are equal).
@@ -47,224 +31,22 @@ Latent statistics (:func:`latent_stats`) of a population's encoded means ``mu``:
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 import torch
 
-from robovae.data.features import JOINT, LINK, FeatureSet, get_feature_set
-from robovae.data.graph import RobotData, children, limbs
-
-#: Descriptor names in table order.
-DESCRIPTORS = ("links", "joints", "depth", "limbs", "mass", "dof", "limb_length", "limb_ratio",
-               "leg_body_ratio")
-#: Integer-valued descriptors (histograms with unit bins).
-COUNT_DESCRIPTORS = ("links", "joints", "depth", "limbs", "dof")
-#: Descriptors log-transformed before standardising / binning (heavy-tailed, positive).
-LOG_DESCRIPTORS = ("mass", "limb_length", "leg_body_ratio")
-#: The descriptor vector of MMD and coverage.
-VECTOR_DESCRIPTORS = ("links", "joints", "depth", "limbs", "mass", "dof", "limb_length",
-                      "limb_ratio")
-_DOF = {"free": 6, "ball": 3, "slide": 1, "hinge": 1}
-
-
-# ----------------------------------------------------------------------------------------------
-# descriptors of one robot
-
-
-def _fs(data: RobotData, feature_set: str | FeatureSet | None) -> FeatureSet:
-    if isinstance(feature_set, FeatureSet):
-        return feature_set
-    if feature_set is not None:
-        return get_feature_set(feature_set)
-    return get_feature_set("full" if data.x.shape[1] == get_feature_set("full").dim
-                           else "paper34")
-
-
-def _trunk(types: list[int], kids: list[list[int]]) -> int:
-    i = 0
-    while types[i] != LINK:  # root joints (a free base) down to the first link
-        nxt = [c for c in kids[i] if types[c] in (LINK, JOINT)]
-        if not nxt:
-            return -1
-        i = nxt[0]
-    return i
-
-
-def limb_lengths(data: RobotData, feature_set: str | FeatureSet | None = None) -> list[float]:
-    """Length (m) of each limb of the trunk: the longest chain of link offsets ``|link.pos|``
-    from the trunk to a leaf link, plus the leaf's extent (twice its largest ``link.size``)."""
-    fs = _fs(data, feature_set)
-    types = data.node_type.tolist()
-    kids = children(data.parent)
-    trunk = _trunk(types, kids)
-    if trunk < 0 or "link" not in fs.node_types:
-        return []
-    pos = data.x[:, fs.slice("link.pos")].double().norm(dim=1).tolist()
-    size = data.x[:, fs.slice("link.size")].double().amax(dim=1).tolist()
-
-    def longest(i: int) -> tuple[float, bool]:
-        """Longest link chain below node ``i`` (inclusive) and whether it holds a joint."""
-        own = pos[i] if types[i] == LINK else 0.0
-        best, has_joint = None, types[i] == JOINT
-        for c in kids[i]:
-            length, j = longest(c)
-            has_joint |= j
-            if types[c] in (LINK, JOINT):
-                best = length if best is None else max(best, length)
-        if best is None:  # a leaf (or a node whose children are geoms)
-            best = 2.0 * size[i] if types[i] == LINK else 0.0
-        return own + best, has_joint
-
-    out = []
-    for c in kids[trunk]:
-        length, has_joint = longest(c)
-        if has_joint:
-            out.append(float(length))
-    return out
-
-
-def dof(data: RobotData, feature_set: str | FeatureSet | None = None) -> int:
-    """Degrees of freedom: free 6, ball 3, hinge and slide 1 (types as the writer infers them)."""
-    from robovae.generate.bodies import joint_types
-
-    fs = _fs(data, feature_set)
-    if "joint" not in fs.node_types:
-        return 0
-    return sum(_DOF.get(t, 0) for t in joint_types(data, fs))
-
-
-def descriptors(data: RobotData, feature_set: str | FeatureSet | None = None) -> dict:
-    """The descriptors of one robot graph (module docstring), plus its ``name``.
-
-    ``feature_set`` defaults to the set whose width matches ``data.x`` (``paper34``/``full``).
-    """
-    fs = _fs(data, feature_set)
-    types = data.node_type
-    is_link = types == LINK
-    robot = fs.node_types[:2] == ("link", "joint")
-    mass = float(data.x[is_link, fs.slice("link.mass")].double().sum()) if robot else 0.0
-    lengths = limb_lengths(data, fs) if robot else []
-    nan = float("nan")
-    trunk_extent = nan
-    if robot:
-        trunk = _trunk(types.tolist(), children(data.parent))
-        if trunk >= 0:
-            ext = 2.0 * float(data.x[trunk, fs.slice("link.size")].max())
-            trunk_extent = ext if ext > 0 else nan
-    return {
-        "name": getattr(data, "name", "") or "",
-        "links": int(is_link.sum()),
-        "joints": int((types == JOINT).sum()),
-        "depth": int(data.depth.max()) if data.num_nodes else 0,
-        "limbs": limbs(data) if robot else 0,
-        "mass": mass,
-        "dof": dof(data, fs) if robot else 0,
-        "limb_length": float(np.mean(lengths)) if lengths else nan,
-        "limb_ratio": (min(lengths) / max(lengths) if len(lengths) >= 2 and max(lengths) > 0
-                       else nan),
-        "leg_body_ratio": (max(lengths) / trunk_extent
-                           if lengths and not math.isnan(trunk_extent) else nan),
-    }
-
-
-_CATEGORY_WORDS = (
-    ("arm", r"(^|_)(z1|piper|panda|arm|ur\d+e?|kinova|gen3|iiwa|xarm\d*|so_?arm\d*|reacher|"
-            r"pusher|tiago|fr3|sawyer|viper|widow|lite6|vx300s?)($|_)"),
-    ("humanoid", r"humanoid|(^|_)(h1|g1|t1|n1|talos|op3|berkeley|cassie|apollo)($|_)"),
-    ("quadruped", r"quadruped|(^|_)(ant|go1|go2|a1|spot|barkour|anymal|dog|dog_v2|rodent|"
-                  r"aliengo|b1|b2)($|_)|barkour"),
+from robovae.evaluate.descriptors import (
+    COUNT_DESCRIPTORS,
+    DESCRIPTORS,
+    LOG_DESCRIPTORS,
+    VECTOR_DESCRIPTORS,
+    descriptor_table,
 )
 
-
-def robot_category(name: str = "", data: RobotData | None = None) -> str:
-    """``quadruped``, ``humanoid``, ``arm`` or ``other``.
-
-    Zoo robots take their zoo category (planar, swimmer, hexapod → ``other``); other names are
-    matched against common robot names (``unitree_go2``, ``unitree_h1``, ``unitree_z1``, ...);
-    else the category comes from its structure: a
-    floating base with four limbs of at most three joints is a quadruped, one with four or five
-    limbs and more joints a humanoid, a fixed base with one limb an arm.
-    """
-    from robovae.data.zoo import zoo_category
-
-    zoo = zoo_category(name)
-    if zoo != "unknown":
-        return zoo if zoo in ("quadruped", "humanoid") else "other"
-    low = name.lower()
-    for cat, pattern in _CATEGORY_WORDS:
-        if re.search(pattern, low):
-            return cat
-    if data is None or data.num_nodes == 0:
-        return "other"
-    d = descriptors(data)
-    from robovae.generate.bodies import joint_types
-
-    floating = (data.node_type[0] == JOINT and joint_types(data, _fs(data, None))[0] == "free")
-    per_limb = (d["joints"] - (1 if floating else 0)) / max(d["limbs"], 1)
-    if floating and d["limbs"] == 4 and per_limb <= 3.0:
-        return "quadruped"
-    if floating and d["limbs"] in (4, 5):
-        return "humanoid"
-    if not floating and d["limbs"] <= 1 and d["joints"] >= 2:
-        return "arm"
-    return "other"
-
-
-# ----------------------------------------------------------------------------------------------
-# populations
-
-
-def load_graphs(paths: Sequence[str | Path], feature_set: str = "paper34",
-                names: Sequence[str] | None = None) -> tuple[list[RobotData], list[str]]:
-    """Robot graphs of files (errors are collected as one-line messages, never raised)."""
-    from robovae.data.mjcf import mjcf_to_graph
-    from robovae.errors import RobovaeError
-
-    graphs, errors = [], []
-    for k, p in enumerate(paths):
-        try:
-            graphs.append(mjcf_to_graph(p, feature_set,
-                                        name=names[k] if names is not None else None))
-        except (RobovaeError, ValueError) as e:
-            errors.append(str(e))
-    return graphs, errors
-
-
-def sample_files(folder: str | Path, valid_only: bool = True) -> list[tuple[str, Path]]:
-    """``[(name, robot.xml)]`` of a folder written by ``robovae generate``.
-
-    With a ``manifest.jsonl`` and ``valid_only``, only the robots it calls valid; without a
-    manifest, every ``robot_*/robot.xml`` (else every ``*.xml`` below the folder).
-    """
-    from robovae.generate.pipeline import read_manifest
-
-    folder = Path(folder)
-    if not folder.is_dir():
-        from robovae.errors import RobovaeError
-
-        raise RobovaeError(f"robovae: {folder}: no such folder of samples")
-    records = read_manifest(folder)
-    if records:
-        out = []
-        for i, rec in sorted(records.items()):
-            if valid_only and rec.get("valid") is False:
-                continue
-            path = folder / rec.get("path", f"robot_{i:06d}/robot.xml")
-            if path.is_file():
-                out.append((rec.get("name") or f"robot_{i:06d}", path))
-        return out
-    files = sorted(folder.glob("robot_*/robot.xml")) or sorted(
-        p for p in folder.rglob("*.xml") if p.name != "scene.xml")
-    return [(p.parent.name if p.name == "robot.xml" else p.stem, p) for p in files]
-
-
-def descriptor_table(records: Sequence[dict], names: Sequence[str] = DESCRIPTORS) -> np.ndarray:
-    """``[N, len(names)]`` float array of descriptor values (NaN where undefined)."""
-    return np.array([[float(r.get(n, math.nan)) for n in names] for r in records],
-                    dtype=float).reshape(len(records), len(names))
+__all__ = ["compare", "coverage", "gaussian_entropy", "histogram_kl", "knn_entropy",
+           "latent_stats", "ledoit_wolf", "mmd_rbf", "participation_ratio", "pca", "standardize",
+           "summary"]
 
 
 def _transform(values: np.ndarray, names: Sequence[str]) -> np.ndarray:
@@ -569,8 +351,6 @@ def pca(x: np.ndarray | torch.Tensor, dims: int = 2) -> tuple[np.ndarray, np.nda
     return ac @ vt[:dims].T, ratio[:dims]
 
 
-__all__ = ["COUNT_DESCRIPTORS", "DESCRIPTORS", "LOG_DESCRIPTORS", "VECTOR_DESCRIPTORS",
-           "compare", "coverage", "descriptor_table", "descriptors", "dof", "gaussian_entropy",
-           "histogram_kl", "knn_entropy", "latent_stats", "ledoit_wolf", "limb_lengths",
-           "load_graphs", "mmd_rbf", "participation_ratio", "pca", "robot_category",
-           "sample_files", "standardize", "summary"]
+# Temporary: notebooks/latent_space.ipynb imports these two from here. When its import line
+# names robovae.evaluate.descriptors instead, this line goes.
+from robovae.evaluate.descriptors import descriptors, robot_category  # noqa: E402, F401

@@ -10,8 +10,20 @@ import pytest
 
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
-from robovae.evaluate.analyze import analyze, encode_means, format_report, to_json, training_graphs
-from robovae.evaluate.population import DESCRIPTORS
+from robovae.data.zoo import zoo_files
+from robovae.errors import RobovaeError
+from robovae.evaluate.analyze import (
+    analyze,
+    encode_means,
+    format_report,
+    load_graphs,
+    sample_files,
+    to_json,
+    training_graphs,
+)
+from robovae.evaluate.descriptors import DESCRIPTORS
+
+ZOO = dict(zoo_files()[0])
 
 
 def _strict(text: str):
@@ -120,3 +132,28 @@ def test_to_json() -> None:
     obj = {"a": math.nan, "b": [np.float32(1.5), np.int64(3), np.bool_(True), math.inf],
            1: (np.float64("nan"),)}
     assert to_json(obj) == {"a": None, "b": [1.5, 3, True, None], "1": [None]}
+
+
+def test_load_graphs_collects_errors(tmp_path) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><worldbody><body></mujoco>")
+    graphs, errors = load_graphs([ZOO["gym_ant"], bad, tmp_path / "missing.xml"],
+                                 names=["a", "b", "c"])
+    assert [g.name for g in graphs] == ["a"]
+    assert len(errors) == 2 and all(e.startswith("robovae: ") for e in errors)
+
+
+def test_sample_files_with_and_without_manifest(tmp_path) -> None:
+    for i in range(3):
+        (tmp_path / f"robot_{i:06d}").mkdir()
+        (tmp_path / f"robot_{i:06d}" / "robot.xml").write_text(ZOO["gym_ant"].read_text())
+    assert [n for n, _ in sample_files(tmp_path)] == [f"robot_{i:06d}" for i in range(3)]
+    with open(tmp_path / "manifest.jsonl", "w") as f:
+        for i, valid in enumerate([True, False, True]):
+            f.write(json.dumps({"index": i, "valid": valid,
+                                "path": f"robot_{i:06d}/robot.xml"}) + "\n")
+    # the manifest's invalid robot 1 is left out
+    assert [n for n, _ in sample_files(tmp_path)] == ["robot_000000", "robot_000002"]
+    assert len(sample_files(tmp_path, valid_only=False)) == 3
+    with pytest.raises(RobovaeError):
+        sample_files(tmp_path / "nope")
