@@ -1,16 +1,16 @@
 """The scene a robot is rendered in: a floor, lights, a sky, markers for bodies without geoms.
 
-A robot file (``.xml``/``.urdf``, loaded with :func:`robovae.data.mjcf.load_robot`, so
-Menagerie files whose meshes are missing still load) or a :class:`mujoco.MjSpec` that has no
-floor is wrapped with ``MjSpec`` edits (:func:`add_floor`): a checkered floor plane at
-``z = min(0, lowest robot point)`` whose squares are ``1, 2 or 5 × 10^k`` m (about half the
-robot's size), a spot light 4 robot sizes above the robot (plus a shadowless fill light) and a
+A robot file (``.xml``/``.urdf``, loaded with :func:`robovae.data.mjcf.load_robot`, so Menagerie
+files whose meshes are missing still load) or a :class:`mujoco.MjSpec` that has no floor is
+wrapped with ``MjSpec`` edits (:func:`add_floor`): a checkered floor plane at ``z = min(0,
+lowest robot point)`` whose squares are the largest ``1, 2 or 5 × 10^k`` m not above half the
+robot's size, a spot light 4 robot sizes above the robot (plus a shadowless fill light) and a
 gradient skybox. A bare :class:`mujoco.MjModel` cannot be edited that way, so its floor is drawn
-straight into the render scene instead (:func:`inject_floor`; no physics: :func:`settle` needs
-a floor, from the file or a spec), from a copy when its buffer or lighting must change. Bodies
+straight into the render scene instead (:func:`inject_floor`; no physics: :func:`settle` needs a
+floor, from the file or a spec), from a copy when its buffer or lighting must change. Bodies
 without any geom get a small marker and a "bone" to their parent (:func:`inject_skeleton`), and
-when most bodies' visible geoms are gone (meshes dropped) the collision geom groups are shown
-as well (:func:`scene_option`). Models that have a floor are rendered as they are.
+when most bodies' visible geoms are gone (meshes dropped) the collision geom groups are shown as
+well (:func:`scene_option`). Models that have a floor are rendered as they are.
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ _HFIELD = mujoco.mjtGeom.mjGEOM_HFIELD
 _FLOOR_RGB = ((0.42, 0.47, 0.53), (0.30, 0.35, 0.41))
 
 
-
 @dataclass
 class Prepared:
     """A compiled robot ready to render.
@@ -57,9 +56,9 @@ class Prepared:
     model: mujoco.MjModel
     data: mujoco.MjData
     name: str
-    floor: int = -1  # geom id of the floor we added
-    light: int = -1  # light id of the light we added
-    inject_floor: bool = False  # bare MjModel without floor: draw one into the scene
+    floor: int = -1
+    light: int = -1
+    inject_floor: bool = False
 
 
 def has_floor(model: mujoco.MjModel) -> bool:
@@ -215,7 +214,6 @@ def settle(prep: Prepared, seconds: float) -> None:
                       stacklevel=3)
         mujoco.mj_resetData(model, data)
     mujoco.mj_forward(model, data)
-
 
 
 def scene_option(model: mujoco.MjModel) -> mujoco.MjvOption:
