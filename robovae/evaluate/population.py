@@ -349,8 +349,3 @@ def pca(x: np.ndarray | torch.Tensor, dims: int = 2) -> tuple[np.ndarray, np.nda
     var = sv ** 2
     ratio = var / var.sum() if var.sum() > 0 else np.zeros_like(var)
     return ac @ vt[:dims].T, ratio[:dims]
-
-
-# Temporary: notebooks/latent_space.ipynb imports these two from here. When its import line
-# names robovae.evaluate.descriptors instead, this line goes.
-from robovae.evaluate.descriptors import descriptors, robot_category  # noqa: E402, F401

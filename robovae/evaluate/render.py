@@ -264,8 +264,3 @@ def side_by_side(original: Robot, reconstruction: Robot, path: str | os.PathLike
     image[:, w - 1:w + 1] = 255
     return _save_labelled(image, path, [(6, 6, titles[0]), (w + 6, 6, titles[1])],
                           fontsize=max(8.0, min(14.0, h / 24)))
-
-
-# Temporary: the notebooks import draw_graph from here. When their import lines name
-# robovae.evaluate.graph_drawing instead, this line goes.
-from robovae.evaluate.graph_drawing import draw_graph  # noqa: E402, F401
