@@ -37,7 +37,8 @@ BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQP
 
 Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel
 
-__all__ = ["Robot", "Stage", "prepare", "robot_points", "stage", "unstable"]
+__all__ = ["Robot", "Stage", "compiled", "extent", "prepare", "robot_points", "stage",
+           "unstable"]
 
 
 @dataclass
@@ -70,6 +71,28 @@ def robot_points(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> np.nd
     return np.concatenate(pts)
 
 
+def compiled(robot: Robot) -> mujoco.MjModel:
+    """The compiled model of a robot file, spec or model (a model is returned as it is; no
+    floor is added).
+
+    Raises:
+        RobotFileError: a file that does not load.
+    """
+    if isinstance(robot, mujoco.MjModel):
+        return robot
+    if isinstance(robot, mujoco.MjSpec):
+        with capture_mujoco_warnings():
+            return robot.copy().compile()
+    return load_robot(robot).model
+
+
+def extent(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> float:
+    """Diagonal (m) of the robot's bounding box at ``data``'s pose (:func:`robot_points`;
+    at least 1e-6)."""
+    pts = robot_points(model, data, root)
+    return max(float(np.linalg.norm(pts.max(0) - pts.min(0))), 1e-6)
+
+
 def _has_floor(model: mujoco.MjModel) -> bool:
     world = model.geom_bodyid == 0
     return bool(np.any(world & np.isin(model.geom_type, (PLANE, HFIELD))))
@@ -88,12 +111,11 @@ def _stage_of(model: mujoco.MjModel, floor_z: float | None = None) -> Stage:
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     root, _ = robot_root(model)
-    pts = robot_points(model, data, root)
-    lo, hi = pts.min(0), pts.max(0)
+    lowest = float(robot_points(model, data, root)[:, 2].min())
     if floor_z is None:
-        floor_z = _floor_height(model, data, float(lo[2]))
+        floor_z = _floor_height(model, data, lowest)
     free = bool(model.body_jntnum[root] >= 1 and model.jnt_type[model.body_jntadr[root]] == FREE)
-    return Stage(model, root, floor_z, max(float(np.linalg.norm(hi - lo)), 1e-6), free)
+    return Stage(model, root, floor_z, extent(model, data, root), free)
 
 
 def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = None
