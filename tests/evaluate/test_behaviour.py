@@ -84,14 +84,14 @@ def test_quadruped_stands_and_weak_quadruped_falls() -> None:
     st = standing_test(quadruped())
     assert st["floating"] and st["stands"] and st["up"] and st["upright"]
     assert st["fell_at"] is None and not st["unstable"]
-    assert st["height_ratio"] >= 0.6 and st["max_tilt"] <= 30
-    assert st["limited_joints"] == 16 and st["stand_seconds"] == pytest.approx(2.0, abs=0.01)
+    assert st["height_ratio"] >= 0.5 and st["max_tilt"] <= 45
+    assert st["limited_joints"] == 16 and st["stand_seconds"] == pytest.approx(3.0, abs=0.01)
     weak = standing_test(quadruped(weak=True))
     assert weak["floating"] and weak["stands"] is False
-    assert weak["fell_at"] is not None and 0 < weak["fell_at"] <= 2.0
-    assert weak["height_ratio"] < 0.6  # the legs fold under the torso
+    assert weak["fell_at"] is not None and 0 < weak["fell_at"] <= 3.0
+    assert weak["min_height_ratio"] < 0.5  # the legs fold under the torso
     # without the robot's own torque limits the same weak robot is held up
-    held = standing_test(quadruped(weak=True), torque_limits=False)
+    held = standing_test(quadruped(weak=True), limit_torques=False)
     assert held["stands"] and held["limited_joints"] == 0
 
 
@@ -131,7 +131,7 @@ def test_behaviour_rows_and_summary(tmp_path) -> None:
 def test_torque_limits_by_hand() -> None:
     """Joint torque an actuator can give: gear · gain · ctrl for a motor, gear · forcerange;
     a position servo is not limited by its control range."""
-    from robovae.evaluate.behaviour import _torque_limits
+    from robovae.evaluate.quality.standing import torque_limits as _torque_limits
 
     xml = """<mujoco><worldbody><body>
       <joint name="j0" type="hinge"/><joint name="j1" type="hinge" axis="1 0 0"/>

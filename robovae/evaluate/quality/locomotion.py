@@ -1,0 +1,126 @@
+"""Locomotion: how fast can an open-loop sinusoidal gait move the robot?
+
+The robot (on a floor, :func:`~robovae.evaluate.quality.stage.stage`) is driven by its own
+actuators with one open-loop gait per rollout,
+
+    ctrl_a(t) = c_a + A_a h_a sin(2π f t + φ_a),
+
+``c_a`` and ``h_a`` the middle and half-width of actuator ``a``'s ``ctrlrange`` (``[-1, 1]``
+when unlimited), amplitude ``A_a ~ U[0, 1]`` and phase ``φ_a ~ U[0, 2π)`` per actuator and one
+frequency ``f ~ U[f_lo, f_hi]`` (0.5–3 Hz) per rollout. A fixed budget of ``rollouts`` (64)
+random gaits of ``seconds`` (4 s) each, drawn from ``numpy.random.default_rng(seed)``, runs in
+one ``mujoco.rollout`` call from ``qpos0`` (random search).
+
+The **speed** of a gait is the horizontal distance (m) the root body covers between
+``settle · seconds`` (a quarter of the rollout: falling over or dropping onto the floor at the
+start is not locomotion) and the end, divided by the time in between and by the robot's extent
+``L`` (the diagonal of its bounding box at ``qpos0``): extents per second; any direction counts
+as forward (a generated robot has no designated front). Rollouts that go unstable (non-finite
+state, or MuJoCo resetting it) score 0. :func:`gait_speed` is the best speed over the budget. A
+robot without actuators scores 0. It is a random search: the number is a lower bound on what
+the body can do with such gaits, comparable between robots measured with the same budget and
+seed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.evaluate.quality.stage import Robot, stage
+
+__all__ = ["GaitResult", "gait", "gait_speed", "sinusoid_controls"]
+
+
+@dataclass
+class GaitResult:
+    """Outcome of :func:`gait`."""
+
+    speed: float  # best horizontal speed / extent, 1/s
+    speed_m_s: float  # the same gait's speed, m/s
+    extent: float  # m
+    frequency: float  # Hz of the best gait (NaN without actuators)
+    amplitude: np.ndarray  # [nu] of the best gait
+    phase: np.ndarray  # [nu] rad
+    unstable: int  # rollouts that went unstable
+    rollouts: int
+    seconds: float  # simulated per rollout
+
+
+def sinusoid_controls(model: mujoco.MjModel, amplitude: np.ndarray, phase: np.ndarray,
+                      frequency: np.ndarray, steps: int) -> np.ndarray:
+    """``[R, steps, nu]`` controls of ``R`` gaits (module docstring) at the model's time
+    step: ``amplitude`` and ``phase`` ``[R, nu]``, ``frequency`` ``[R]`` (Hz)."""
+    limited = model.actuator_ctrllimited.astype(bool)
+    lo = np.where(limited, model.actuator_ctrlrange[:, 0], -1.0)
+    hi = np.where(limited, model.actuator_ctrlrange[:, 1], 1.0)
+    mid, half = (lo + hi) / 2, (hi - lo) / 2
+    t = np.arange(steps) * model.opt.timestep
+    arg = 2 * np.pi * frequency[:, None, None] * t[None, :, None] + phase[:, None, :]
+    return mid + amplitude[:, None, :] * half * np.sin(arg)
+
+
+def _root_xy(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root: int
+             ) -> np.ndarray:
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    return data.xpos[root, :2].copy()
+
+
+def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
+         frequency: tuple[float, float] = (0.5, 3.0), settle: float = 0.25,
+         max_steps: int = 2_000) -> GaitResult:
+    """Random search over open-loop sinusoidal gaits (module docstring).
+
+    ``max_steps`` caps the steps per rollout (a robot with a tiny time step is driven for less
+    than ``seconds``; ``GaitResult.seconds`` says how long and the speed uses it).
+
+    Raises:
+        RobovaeError: a model without a floor; RobotFileError: a file that does not load.
+    """
+    st = stage(robot)
+    model, root = st.model, st.root
+    dt = model.opt.timestep
+    steps = min(max(1, round(seconds / dt)), max_steps)
+    nan = math.nan
+    if model.nu == 0 or rollouts <= 0:
+        return GaitResult(0.0, 0.0, st.extent, nan, np.zeros(model.nu), np.zeros(model.nu),
+                          0, max(rollouts, 0), steps * dt)
+    rng = np.random.default_rng(seed)
+    amp = rng.uniform(0.0, 1.0, (rollouts, model.nu))
+    phase = rng.uniform(0.0, 2 * np.pi, (rollouts, model.nu))
+    freq = rng.uniform(frequency[0], frequency[1], rollouts)
+    ctrl = sinusoid_controls(model, amp, phase, freq, steps)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state0, spec)
+    first = min(int(settle * steps), steps - 1)  # state index where the distance starts
+    span = (steps - 1 - first) * dt if first < steps - 1 else steps * dt
+    with capture_mujoco_warnings():
+        states, _ = rollout.rollout(model, data, state0[None], ctrl, nstep=steps)
+    speeds = np.zeros(rollouts)
+    bad = 0
+    for r in range(rollouts):
+        s = states[r]
+        if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
+            bad += 1
+            continue
+        start = _root_xy(model, data, s[first, 1:1 + model.nq], root)
+        end = _root_xy(model, data, s[-1, 1:1 + model.nq], root)
+        speeds[r] = float(np.linalg.norm(end - start)) / span
+    best = int(np.argmax(speeds))
+    return GaitResult(float(speeds[best]) / st.extent, float(speeds[best]), st.extent,
+                      float(freq[best]), amp[best], phase[best], bad, rollouts, steps * dt)
+
+
+def gait_speed(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0) -> float:
+    """Best horizontal speed over the robot's extent (1/s) of ``rollouts`` seeded random
+    sinusoidal gaits of ``seconds`` (:func:`gait`)."""
+    return gait(robot, rollouts, seconds, seed).speed

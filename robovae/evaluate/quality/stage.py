@@ -1,0 +1,167 @@
+"""A robot on a floor, ready for the quality measures: its compiled model, root body, floor
+height and size.
+
+:func:`stage` accepts a robot file, a ``mujoco.MjSpec`` or a compiled ``mujoco.MjModel``:
+
+- a file or spec gets a floor (a plane at the robot's lowest point at ``qpos0``) when it has
+  none (:func:`prepare`, which also returns the spec with the floor);
+- a model is used as it is: it must already have a floor (an upward world plane or height
+  field), else :class:`~robovae.errors.RobovaeError` is raised.
+
+**Size.** ``Stage.extent`` is the diagonal (m) of the axis-aligned box around the robot's geoms
+(world-frame corners of their bounding boxes) and body origins at ``qpos0``. MuJoCo's
+``stat.extent`` would be the natural choice but it includes world geoms and ``<statistic>``
+overrides (the dm_control quadruped's floor makes it 85 m, gymnasium's ant sets 8 m), so the
+robot's own box is used.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from robovae.data.mjcf import capture_mujoco_warnings, load_robot, robot_root
+from robovae.errors import RobovaeError
+
+# plain ints: MjModel arrays hold ints, which do not compare equal to the pybind enums
+PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
+HFIELD = int(mujoco.mjtGeom.mjGEOM_HFIELD)
+FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+MOVING = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
+                mujoco.mjtWarning.mjWARN_BADQVEL)
+
+Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel
+
+__all__ = ["Robot", "Stage", "compiled", "extent", "prepare", "robot_points", "stage",
+           "unstable"]
+
+
+@dataclass
+class Stage:
+    """A compiled robot on a floor (module docstring)."""
+
+    model: mujoco.MjModel
+    root: int  # root body id (robovae.data.mjcf.robot_root)
+    floor_z: float  # height of the floor under the robot, m
+    extent: float  # diagonal of the robot's bounding box at qpos0, m
+    free: bool  # the root body has a free joint
+
+
+def robot_points(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> np.ndarray:
+    """``[P, 3]`` world corners of the geom AABBs of the robot (the subtree of ``root``, planes
+    and height fields left out) and its body origins, at ``data``'s pose."""
+    bodies = np.flatnonzero(model.body_rootid == root)
+    bodies = bodies[bodies > 0]
+    pts = [data.xpos[bodies]]
+    g = np.flatnonzero((model.body_rootid[model.geom_bodyid] == root)
+                       & (model.geom_bodyid > 0)
+                       & ~np.isin(model.geom_type, (PLANE, HFIELD)))
+    if len(g):
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        center, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        local = center[:, None, :] + half[:, None, :] * signs[None]  # [G, 8, 3]
+        rot = data.geom_xmat[g].reshape(-1, 3, 3)
+        pts.append((np.einsum("gij,gkj->gki", rot, local) + data.geom_xpos[g][:, None]
+                    ).reshape(-1, 3))
+    return np.concatenate(pts)
+
+
+def compiled(robot: Robot) -> mujoco.MjModel:
+    """The compiled model of a robot file, spec or model (a model is returned as it is; no
+    floor is added).
+
+    Raises:
+        RobotFileError: a file that does not load.
+    """
+    if isinstance(robot, mujoco.MjModel):
+        return robot
+    if isinstance(robot, mujoco.MjSpec):
+        with capture_mujoco_warnings():
+            return robot.copy().compile()
+    return load_robot(robot).model
+
+
+def extent(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> float:
+    """Diagonal (m) of the robot's bounding box at ``data``'s pose (:func:`robot_points`;
+    at least 1e-6)."""
+    pts = robot_points(model, data, root)
+    return max(float(np.linalg.norm(pts.max(0) - pts.min(0))), 1e-6)
+
+
+def _has_floor(model: mujoco.MjModel) -> bool:
+    world = model.geom_bodyid == 0
+    return bool(np.any(world & np.isin(model.geom_type, (PLANE, HFIELD))))
+
+
+def _floor_height(model: mujoco.MjModel, data: mujoco.MjData, lowest: float) -> float:
+    """Height of the highest upward-facing world plane not above the robot's lowest point
+    (walls and ceilings are planes too); ``lowest`` when there is none (a height field)."""
+    z = [float(data.geom_xpos[g, 2]) for g in range(model.ngeom)
+         if model.geom_bodyid[g] == 0 and model.geom_type[g] == PLANE
+         and data.geom_xmat[g, 8] > 0.99 and data.geom_xpos[g, 2] <= lowest + 1e-3]
+    return max(z) if z else lowest
+
+
+def _stage_of(model: mujoco.MjModel, floor_z: float | None = None) -> Stage:
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    root, _ = robot_root(model)
+    lowest = float(robot_points(model, data, root)[:, 2].min())
+    if floor_z is None:
+        floor_z = _floor_height(model, data, lowest)
+    free = bool(model.body_jntnum[root] >= 1 and model.jnt_type[model.body_jntadr[root]] == FREE)
+    return Stage(model, root, floor_z, extent(model, data, root), free)
+
+
+def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = None
+            ) -> tuple[mujoco.MjSpec, Stage]:
+    """The robot's spec (a copy) with a floor (added at its lowest point, named
+    ``robovae_floor``, when it has none) and its :class:`Stage`.
+
+    Raises:
+        RobotFileError: the file does not load (one line).
+    """
+    spec = robot.copy() if isinstance(robot, mujoco.MjSpec) else load_robot(robot).spec
+    with capture_mujoco_warnings():
+        model = spec.compile()
+    if not _has_floor(model):
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
+        spec.worldbody.add_geom(name="robovae_floor", type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                size=[0, 0, 0.05], pos=[0.0, 0.0, lowest], condim=3)
+    if integrator is not None:
+        spec.option.integrator = integrator
+    with capture_mujoco_warnings():
+        model = spec.compile()
+    return spec, _stage_of(model)
+
+
+def stage(robot: Robot, integrator: int | None = None) -> Stage:
+    """The :class:`Stage` of a robot file, spec or model (module docstring); a model is
+    copied, never changed.
+
+    Raises:
+        RobovaeError: a model without a floor.
+        RobotFileError: a file that does not load.
+    """
+    if isinstance(robot, mujoco.MjModel):
+        if not _has_floor(robot):
+            raise RobovaeError("robovae: model has no floor (pass the robot's file or MjSpec, "
+                               "or compile it with a floor plane)")
+        model = copy.copy(robot)
+        if integrator is not None:
+            model.opt.integrator = integrator
+        return _stage_of(model)
+    return prepare(robot, integrator)[1]
+
+
+def unstable(data: mujoco.MjData) -> bool:
+    """NaN/Inf state or a MuJoCo instability warning (bad qacc/qpos/qvel) since the last reset."""
+    finite = np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()
+    return not finite or any(data.warning[w].number for w in BAD_WARNINGS)

@@ -1,0 +1,196 @@
+"""Standing test: does the robot, joints held at rest, stay up on a floor?
+
+The robot (:func:`~robovae.evaluate.quality.stage.stage`: a floor is added to a file or spec
+without one) is simulated for ``seconds`` (3 s) with every hinge and slide joint PD-held at its
+``qpos0`` value, from ``qpos0`` and zero velocity, in one ``mujoco.rollout`` call (the hold is
+part of the model, so no Python runs per step). A copy of the model is changed, never the
+caller's:
+
+- **hold**: stiffness ``kp = stiffness · m g L`` (total mass ``m``, extent ``L``: the base
+  sags about ``1/stiffness`` rad under its full weight on a lever of its own size), capped at
+  ``0.1 I / dt²`` (``I`` the joint's inertia ``dof_M0`` at ``qpos0``, ``dt`` the time step, so
+  that the explicit spring stays stable), critical damping ``kv = 2 sqrt(kp I)``, integrator
+  ``implicitfast`` (damping implicit);
+- a joint driven by a stateless actuator of the robot (joint transmission, no activation) is
+  held by that actuator turned into a position servo (gain ``kp``, bias ``-kp q - kv q̇``,
+  gear 1) whose force is limited, with ``torque_limits``, by what the robot's own actuators
+  can give on that joint (:func:`torque_limits`); other joints are held by a passive spring
+  and damper (``jnt_stiffness``, ``qpos_spring = qpos0``, ``dof_damping``), unlimited; the
+  robot's other actuators are switched off (zero gain and bias).
+
+Only floating-base robots (root body with a free joint) are tested. The robot **stands** when
+at every sample (every ``sample_dt``) its root stayed **up** — root height above the floor at
+least ``min_height`` (0.5) of its height above its own lowest point at ``qpos0`` — and
+**upright** — the root's up axis (the local direction that points up at ``qpos0``) within
+``max_tilt`` (45°) of vertical — and the simulation stayed stable (finite, no MuJoCo
+instability warning: MuJoCo would silently reset the state).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.evaluate.quality.stage import MOVING, Robot, robot_points, stage, unstable
+
+_TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
+_GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
+_BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
+_BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
+_DYN_INTEGRATOR = int(mujoco.mjtDyn.mjDYN_INTEGRATOR)
+
+__all__ = ["StandResult", "hold_at_rest", "standing", "torque_limits"]
+
+
+@dataclass
+class StandResult:
+    """Outcome of :func:`standing`. Every field but ``floating`` is None for a robot that was
+    not tested (no free root joint)."""
+
+    floating: bool  # root body has a free joint (tested)
+    stands: bool | None = None  # up, upright and stable at every sample
+    up: bool | None = None  # at the last sample
+    upright: bool | None = None  # at the last sample
+    fell_at: float | None = None  # s, first failing sample (None when standing)
+    height_ratio: float | None = None  # last root height / initial height
+    min_height_ratio: float | None = None
+    max_tilt: float | None = None  # degrees, worst over the samples
+    unstable: bool | None = None
+    limited_joints: int | None = None  # joints held with a torque limit
+    seconds: float | None = None  # simulated
+
+
+def torque_limits(model: mujoco.MjModel) -> dict[int, float]:
+    """Largest torque (N·m, or N for a slide) the robot's own actuators can put on each joint
+    they drive through a joint transmission: ``|gear · gain| · max|ctrlrange|`` for a
+    motor-like actuator (fixed gain, no bias; ``actrange`` for an integrator), ``|gear| ·
+    max|forcerange|`` when force-limited (the smaller of the two), ``inf`` otherwise (a servo's
+    force is not bounded by its control range); summed over the actuators of a joint."""
+    out: dict[int, float] = {}
+    for a in range(model.nu):
+        if model.actuator_trntype[a] != _TRN_JOINT:
+            continue
+        j = int(model.actuator_trnid[a, 0])
+        gear = abs(float(model.actuator_gear[a, 0]))
+        limit = math.inf
+        if model.actuator_gaintype[a] == _GAIN_FIXED and model.actuator_biastype[a] == _BIAS_NONE:
+            gain = gear * abs(float(model.actuator_gainprm[a, 0]))
+            if model.actuator_dyntype[a] == _DYN_INTEGRATOR:
+                if model.actuator_actlimited[a]:
+                    limit = gain * float(np.abs(model.actuator_actrange[a]).max())
+            elif model.actuator_ctrllimited[a]:
+                limit = gain * float(np.abs(model.actuator_ctrlrange[a]).max())
+        if model.actuator_forcelimited[a]:  # forcerange clamps the force before the gear
+            limit = min(limit, gear * float(np.abs(model.actuator_forcerange[a]).max()))
+        out[j] = out.get(j, 0.0) + limit
+    return out
+
+
+def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
+                 limit_torques: bool = True) -> tuple[np.ndarray, int]:
+    """Change ``model`` in place so that every hinge/slide joint is PD-held at ``qpos0``
+    (module docstring). Returns the constant control vector that holds the robot (servo
+    targets ``qpos0``, zero elsewhere) and the number of torque-limited joints."""
+    limits = torque_limits(model) if limit_torques else {}
+    mass = float(model.body_subtreemass[0])
+    g = float(np.linalg.norm(model.opt.gravity)) or 9.81
+    dt = model.opt.timestep
+    servo: dict[int, int] = {}  # joint -> actuator
+    for a in range(model.nu):
+        j = int(model.actuator_trnid[a, 0])
+        if (model.actuator_trntype[a] == _TRN_JOINT and model.actuator_actnum[a] == 0
+                and model.jnt_type[j] in MOVING and j not in servo):
+            servo[j] = a
+    model.actuator_gaintype[:] = _GAIN_FIXED  # every actuator off unless made a servo
+    model.actuator_biastype[:] = _BIAS_NONE
+    model.actuator_gainprm[:] = 0.0
+    model.actuator_biasprm[:] = 0.0
+    ctrl = np.zeros(model.nu)
+    limited = 0
+    for j in range(model.njnt):
+        if model.jnt_type[j] not in MOVING:
+            continue
+        dof, qadr = model.jnt_dofadr[j], model.jnt_qposadr[j]
+        inertia = float(model.dof_M0[dof])
+        kp = min(stiffness * mass * g * extent, 0.1 * inertia / dt ** 2)
+        kv = 2.0 * math.sqrt(kp * inertia)
+        a = servo.get(j)
+        if a is None:
+            model.jnt_stiffness[j] = kp
+            model.qpos_spring[qadr] = model.qpos0[qadr]
+            model.dof_damping[dof] += kv
+            continue
+        model.actuator_biastype[a] = _BIAS_AFFINE
+        model.actuator_gainprm[a, 0] = kp
+        model.actuator_biasprm[a, :3] = (0.0, -kp, -kv)
+        model.actuator_gear[a] = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        model.actuator_ctrllimited[a] = 0
+        lim = limits.get(j, math.inf)
+        model.actuator_forcelimited[a] = int(math.isfinite(lim) and lim > 0)
+        if model.actuator_forcelimited[a]:
+            model.actuator_forcerange[a] = (-lim, lim)
+            limited += 1
+        ctrl[a] = model.qpos0[qadr]
+    return ctrl, limited
+
+
+def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
+             limit_torques: bool = True, min_height: float = 0.5, max_tilt: float = 45.0,
+             sample_dt: float = 0.02, max_steps: int = 10_000) -> StandResult:
+    """The standing test of a robot file, spec or model with a floor (module docstring).
+
+    ``max_steps`` caps the physics steps: a robot with a tiny time step is tested for less than
+    ``seconds`` (``StandResult.seconds`` says how long).
+
+    Raises:
+        RobovaeError: a model without a floor; RobotFileError: a file that does not load.
+    """
+    st = stage(robot, integrator=mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
+    if not st.free:
+        return StandResult(floating=False)
+    model, root = st.model, st.root
+    ctrl, limited = hold_at_rest(model, st.extent, stiffness, limit_torques)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    h0 = float(data.xpos[root, 2] - robot_points(model, data, root)[:, 2].min())
+    up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
+    dt = model.opt.timestep
+    steps = min(max(1, round(seconds / dt)), max_steps)
+    every = max(1, round(sample_dt / dt))
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state0, spec)
+    with capture_mujoco_warnings():
+        states, _ = rollout.rollout(model, data, state0[None], ctrl[None, None],
+                                    nstep=steps)
+    bad = unstable(data) or not np.isfinite(states).all()
+    times = states[0, :, 0]
+    bad = bad or bool(np.any(np.diff(times) <= 0))  # MuJoCo resets the state on bad qacc
+    picks = list(range(every - 1, steps, every))
+    if not picks or picks[-1] != steps - 1:
+        picks.append(steps - 1)
+    qpos = states[0, picks, 1:1 + model.nq]
+    fell_at, min_ratio, worst, ratio, tilt = None, math.inf, 0.0, math.nan, 0.0
+    for t, q in zip(picks, qpos):
+        if not np.isfinite(q).all():
+            fell_at = fell_at if fell_at is not None else (t + 1) * dt
+            break
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        ratio = float(data.xpos[root, 2] - st.floor_z) / max(h0, 1e-9)
+        up = data.xmat[root].reshape(3, 3) @ up_local
+        tilt = math.degrees(math.acos(float(np.clip(up[2], -1.0, 1.0))))
+        min_ratio, worst = min(min_ratio, ratio), max(worst, tilt)
+        if fell_at is None and (ratio < min_height or tilt > max_tilt):
+            fell_at = (t + 1) * dt
+    return StandResult(
+        floating=True, stands=fell_at is None and not bad,
+        up=bool(ratio >= min_height) and not bad, upright=bool(tilt <= max_tilt) and not bad,
+        fell_at=fell_at, height_ratio=ratio,
+        min_height_ratio=min_ratio if math.isfinite(min_ratio) else math.nan,
+        max_tilt=worst, unstable=bool(bad), limited_joints=limited, seconds=steps * dt)

@@ -1,0 +1,86 @@
+"""Standing and locomotion measures (robovae.evaluate.quality) on real MuJoCo robots."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import pytest
+
+from robovae.data.procedural import ProceduralConfig, procedural_spec
+from robovae.errors import RobovaeError
+from robovae.evaluate.quality import gait, gait_speed, stage, standing
+from robovae.evaluate.quality.stage import prepare
+
+FAST = {"rollouts": 8, "seconds": 2.0}
+
+
+def stick(lean: float = 0.03, actuated: bool = False) -> mujoco.MjSpec:
+    """A 1 m stick on a round foot with a 5 kg ball on top, leaning ``lean`` m sideways."""
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="stick", pos=[0, 0, 0.05])
+    body.add_freejoint()
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.05, 0, 0],
+                  fromto=[0, 0, 0, lean, 0, 1.0], mass=0.5)
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.1, 0, 0], pos=[lean, 0, 1.0],
+                  mass=5.0)
+    if actuated:
+        arm = body.add_body(name="arm", pos=[lean, 0, 1.0])
+        arm.add_joint(name="swing", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+        arm.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.03, 0, 0],
+                     fromto=[0, 0, 0, 0.3, 0, 0], mass=0.2)
+        spec.add_actuator(target="swing", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    return spec
+
+
+def test_a_quadruped_stands_and_a_top_heavy_stick_falls() -> None:
+    quad = standing(procedural_spec(2, "quadruped"))
+    assert quad.floating and quad.stands and quad.up and quad.upright and not quad.unstable
+    assert quad.fell_at is None and quad.seconds == pytest.approx(3.0, abs=0.01)
+    assert quad.min_height_ratio >= 0.5 and quad.max_tilt <= 45
+    fell = standing(stick())
+    assert fell.floating and fell.stands is False and fell.upright is False
+    assert 0 < fell.fell_at < 3.0 and fell.max_tilt > 45
+
+
+def test_standing_accepts_a_model_with_a_floor_and_leaves_it_unchanged() -> None:
+    spec, _ = prepare(procedural_spec(2, "quadruped"))
+    model = spec.compile()
+    stiffness = model.jnt_stiffness.copy()
+    assert standing(model).stands
+    assert (model.jnt_stiffness == stiffness).all() and model.nu == 16
+    with pytest.raises(RobovaeError, match="no floor"):
+        standing(procedural_spec(2, "quadruped").compile())
+
+
+def test_standing_skips_a_robot_without_a_free_root() -> None:
+    spec = stick()
+    spec.delete(spec.joints[0])
+    r = standing(spec)
+    assert r.floating is False and r.stands is None
+
+
+def test_gait_speed_is_seeded_and_a_weak_robot_moves_less() -> None:
+    strong = gait(procedural_spec(2, "quadruped"), **FAST)
+    again = gait(procedural_spec(2, "quadruped"), **FAST)
+    other = gait(procedural_spec(2, "quadruped"), seed=1, **FAST)
+    weak = gait(procedural_spec(2, "quadruped", ProceduralConfig(gear=(0.001, 0.002))), **FAST)
+    assert strong.speed == again.speed and strong.speed != other.speed
+    assert strong.rollouts == 8 and strong.unstable == 0 and strong.seconds == pytest.approx(2)
+    assert strong.speed == pytest.approx(strong.speed_m_s / strong.extent)
+    assert strong.amplitude.shape == (16,) and 0.5 <= strong.frequency <= 3.0
+    assert weak.speed < 0.25 * strong.speed
+    assert gait_speed(procedural_spec(2, "quadruped"), **FAST) == strong.speed
+
+
+def test_a_robot_without_actuators_does_not_move() -> None:
+    r = gait(stick(), **FAST)
+    assert r.speed == 0.0 and math.isnan(r.frequency)
+    assert gait(stick(actuated=True), **FAST).frequency > 0
+
+
+def test_stage_measures_the_robot_not_the_floor() -> None:
+    st = stage(stick(lean=0.0))
+    # box around the stick: 0.2 m wide (ball), from z = 0 (foot) to 1.15 m (ball top)
+    assert st.extent == pytest.approx(math.sqrt(0.2 ** 2 + 0.2 ** 2 + 1.15 ** 2), rel=1e-6)
+    assert st.free and st.floor_z == pytest.approx(0.0, abs=1e-9)
