@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from robovae.data.graph import RobotData
-from robovae.data.mjcf import SUFFIXES
+from robovae.data.robot_file import SUFFIXES
 from robovae.errors import RobovaeError
 
 

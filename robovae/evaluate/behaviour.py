@@ -53,7 +53,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import capture_mujoco_warnings, load_robot, robot_root
+from robovae.data.loading import capture_mujoco_warnings, load_robot
+from robovae.data.mjcf import robot_root
 from robovae.evaluate.population import knn_entropy
 
 # plain ints: MjModel arrays hold ints, which do not compare equal to the pybind enums
