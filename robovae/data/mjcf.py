@@ -45,6 +45,7 @@ from robovae.errors import RobotFileError
 
 _MESH = mujoco.mjtGeom.mjGEOM_MESH
 _TRN_JOINT = mujoco.mjtTrn.mjTRN_JOINT
+_PRIMITIVE = np.isin(np.arange(int(mujoco.mjtGeom.mjNGEOMTYPES)), GEOM_TYPE_IDS)  # by type id
 
 
 def robot_root(model: mujoco.MjModel) -> tuple[int, list[str]]:
@@ -61,89 +62,96 @@ def robot_root(model: mujoco.MjModel) -> tuple[int, list[str]]:
     return int(root), warnings
 
 
-def _first_geom(model: mujoco.MjModel, body: int) -> int:
-    """The body's first collision geom, else its first geom, else -1."""
-    start, n = model.body_geomadr[body], model.body_geomnum[body]
-    if n <= 0:
-        return -1
-    ids = range(start, start + n)
-    for g in ids:
-        if model.geom_contype[g] or model.geom_conaffinity[g]:
-            return g
-    return start
+def _first_geoms(model: mujoco.MjModel, bodies: np.ndarray) -> np.ndarray:
+    """Each body's first collision geom, else its first geom, else -1 (geoms are stored body
+    by body, in declaration order)."""
+    first = np.where(model.body_geomnum > 0, model.body_geomadr, -1).astype(np.int64)
+    colliding = np.flatnonzero((model.geom_contype != 0) | (model.geom_conaffinity != 0))
+    owners, at = np.unique(model.geom_bodyid[colliding], return_index=True)
+    first[owners] = colliding[at]
+    return first[bodies]
 
 
-def _geom_primitive(model: mujoco.MjModel, g: int) -> tuple[int, np.ndarray, np.ndarray,
-                                                            np.ndarray]:
-    """(geom type id, pos, quat, size) with meshes replaced by their bounding box."""
-    gtype = int(model.geom_type[g])
-    pos, quat, size = model.geom_pos[g].copy(), model.geom_quat[g].copy(), model.geom_size[g]
-    if gtype in GEOM_TYPE_IDS:
-        return gtype, pos, quat, size.copy()
-    center, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-    offset = np.zeros(3)
-    mujoco.mju_rotVecQuat(offset, center, quat)
-    return GEOM_TYPE_IDS[-1], pos + offset, quat, half.copy()
+def _geom_primitives(model: mujoco.MjModel, g: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                   np.ndarray, np.ndarray]:
+    """(type ids, pos, quat, size) of geoms ``g``, meshes (and other non-primitives) replaced
+    by the box of their bounding size, centred where it is."""
+    gtype = model.geom_type[g].astype(np.int64)
+    pos, quat, size = model.geom_pos[g].copy(), model.geom_quat[g].copy(), model.geom_size[g].copy()
+    for k in np.flatnonzero(~_PRIMITIVE[gtype]).tolist():
+        center, half = model.geom_aabb[g[k], :3], model.geom_aabb[g[k], 3:]
+        offset = np.zeros(3)
+        mujoco.mju_rotVecQuat(offset, center, quat[k])
+        gtype[k], pos[k], size[k] = GEOM_TYPE_IDS[-1], pos[k] + offset, half
+    return gtype, pos, quat, size
 
 
-class _Writer:
-    """Fills feature rows of one robot from the compiled model (reads the registry slices)."""
+def _first_actuators(model: mujoco.MjModel, joints: np.ndarray) -> np.ndarray:
+    """The first actuator driving each joint through a joint transmission, else -1."""
+    first = np.full(model.njnt, -1, dtype=np.int64)
+    acts = np.flatnonzero(model.actuator_trntype == _TRN_JOINT)
+    targets, at = np.unique(model.actuator_trnid[acts, 0], return_index=True)
+    first[targets] = acts[at]
+    return first[joints]
 
-    def __init__(self, model: mujoco.MjModel, fs: FeatureSet) -> None:
-        self.m, self.fs = model, fs
-        self.keys = {f.key for f in fs.features}
-        self.act_of_joint: dict[int, int] = {}
-        for a in range(model.nu):
-            if model.actuator_trntype[a] == _TRN_JOINT:
-                self.act_of_joint.setdefault(int(model.actuator_trnid[a, 0]), a)
 
-    def put(self, row: np.ndarray, key: str, value) -> None:
-        if key in self.keys:
-            row[self.fs.slice(key)] = value
+def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarray,
+          ids: np.ndarray) -> int:
+    """Write every feature of every node into ``x`` (rows in node order) straight from the
+    compiled arrays; returns the number of links without geoms."""
+    keys = {f.key for f in fs.features}
+    m = model
 
-    def link(self, row: np.ndarray, b: int) -> bool:
-        m, put = self.m, self.put
-        put(row, "link.pos", m.body_pos[b])
-        put(row, "link.mass", m.body_mass[b])
-        put(row, "link.inertia", m.body_inertia[b])
-        put(row, "link.quat", m.body_quat[b])
-        put(row, "link.subtreemass", m.body_subtreemass[b])
-        put(row, "link.ipos", m.body_ipos[b])
-        put(row, "link.iquat", m.body_iquat[b])
-        g = _first_geom(m, b)
-        if g >= 0:
-            put(row, "link.size", _geom_primitive(m, g)[3])
-        return g >= 0
+    def put(rows: np.ndarray, key: str, values) -> None:
+        if key in keys and rows.size:
+            x[rows, fs.slice(key)] = np.asarray(values, dtype=np.float64).reshape(len(rows), -1)
 
-    def joint(self, row: np.ndarray, j: int) -> None:
-        m, put = self.m, self.put
-        dof = m.jnt_dofadr[j]
-        limited = bool(m.jnt_limited[j])
-        put(row, "joint.type", np.eye(4)[m.jnt_type[j]])
-        put(row, "joint.limited", float(limited))
-        put(row, "joint.range", m.jnt_range[j] if limited else 0.0)
-        put(row, "joint.stiffness", m.jnt_stiffness[j])
-        put(row, "joint.axis", m.jnt_axis[j])
-        put(row, "joint.pos", m.jnt_pos[j])
-        put(row, "joint.armature", m.dof_armature[dof])
-        put(row, "joint.damping", m.dof_damping[dof])
-        put(row, "joint.frictionloss", m.dof_frictionloss[dof])
-        a = self.act_of_joint.get(j)
-        if a is not None:
-            put(row, "joint.actuated", 1.0)
-            put(row, "joint.gear", m.actuator_gear[a, 0])
-            put(row, "joint.ctrlrange", m.actuator_ctrlrange[a] if m.actuator_ctrllimited[a]
-                else 0.0)
+    rows = np.flatnonzero(types == LINK)
+    b = ids[rows]
+    put(rows, "link.pos", m.body_pos[b])
+    put(rows, "link.mass", m.body_mass[b])
+    put(rows, "link.inertia", m.body_inertia[b])
+    put(rows, "link.quat", m.body_quat[b])
+    put(rows, "link.subtreemass", m.body_subtreemass[b])
+    put(rows, "link.ipos", m.body_ipos[b])
+    put(rows, "link.iquat", m.body_iquat[b])
+    first = _first_geoms(m, b)
+    has = first >= 0
+    put(rows[has], "link.size", _geom_primitives(m, first[has])[3])
 
-    def geom(self, row: np.ndarray, g: int) -> None:
-        m, put = self.m, self.put
-        gtype, pos, quat, size = _geom_primitive(m, g)
-        put(row, "geom.type", np.eye(len(GEOM_TYPE_IDS))[GEOM_TYPE_IDS.index(gtype)])
-        put(row, "geom.pos", pos)
-        put(row, "geom.quat", quat)
-        put(row, "geom.size", size)
-        put(row, "geom.friction", m.geom_friction[g])
-        put(row, "geom.collides", float(bool(m.geom_contype[g] or m.geom_conaffinity[g])))
+    rows = np.flatnonzero(types == JOINT)
+    j = ids[rows]
+    dof = m.jnt_dofadr[j]
+    limited = m.jnt_limited[j].astype(bool)
+    put(rows, "joint.type", np.eye(4)[m.jnt_type[j]])
+    put(rows, "joint.limited", limited.astype(np.float64))
+    put(rows, "joint.range", np.where(limited[:, None], m.jnt_range[j], 0.0))
+    put(rows, "joint.stiffness", m.jnt_stiffness[j])
+    put(rows, "joint.axis", m.jnt_axis[j])
+    put(rows, "joint.pos", m.jnt_pos[j])
+    put(rows, "joint.armature", m.dof_armature[dof])
+    put(rows, "joint.damping", m.dof_damping[dof])
+    put(rows, "joint.frictionloss", m.dof_frictionloss[dof])
+    act = _first_actuators(m, j)
+    on = act >= 0
+    a = act[on]
+    put(rows[on], "joint.actuated", np.ones(len(a)))
+    put(rows[on], "joint.gear", m.actuator_gear[a, 0])
+    put(rows[on], "joint.ctrlrange", np.where(m.actuator_ctrllimited[a, None] != 0,
+                                              m.actuator_ctrlrange[a], 0.0))
+
+    rows = np.flatnonzero(types == GEOM)
+    g = ids[rows]
+    gtype, pos, quat, size = _geom_primitives(m, g)
+    onehot = np.eye(len(GEOM_TYPE_IDS))[np.searchsorted(GEOM_TYPE_IDS, gtype)]
+    put(rows, "geom.type", onehot)
+    put(rows, "geom.pos", pos)
+    put(rows, "geom.quat", quat)
+    put(rows, "geom.size", size)
+    put(rows, "geom.friction", m.geom_friction[g])
+    put(rows, "geom.collides", ((m.geom_contype[g] != 0) | (m.geom_conaffinity[g] != 0))
+        .astype(np.float64))
+    return int((~has).sum())
 
 
 class FeatureValueError(ValueError):
@@ -158,6 +166,29 @@ _NODE_KIND = {LINK: "body", JOINT: "joint", GEOM: "geom"}
 _F32_MAX = float(np.finfo(np.float32).max)
 
 
+_BOUNDS: dict[int, tuple[FeatureSet, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
+def _outside(fs: FeatureSet, x: np.ndarray, t: np.ndarray) -> bool:
+    """Whether any non-categorical value lies outside its registry range (1e-6 relative
+    tolerance): the quick test before :func:`_check_values` names the features."""
+    if id(fs) not in _BOUNDS:
+        col_type, low, high = [], [], []
+        for f in fs.features:
+            ti = fs.node_types.index(f.node_type) if f.transform != "categorical" else -1
+            col_type += [ti] * f.width
+            low += [f.low - 1e-6 * max(1.0, abs(f.low))] * f.width
+            high += [f.high + 1e-6 * max(1.0, abs(f.high))] * f.width
+        _BOUNDS[id(fs)] = (fs, np.array(col_type), np.array(low), np.array(high))
+    _, col_type, low, high = _BOUNDS[id(fs)]
+    for ti in np.unique(t).tolist():
+        cols = col_type == ti
+        sub = x[t == ti][:, cols]
+        if (sub.min(0) < low[cols]).any() or (sub.max(0) > high[cols]).any():
+            return True
+    return False
+
+
 def _check_values(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: list[int],
                   ids: list[int], warns: list[str]) -> None:
     """Raise on values float32 cannot hold; warn about values outside the registry ranges."""
@@ -168,6 +199,8 @@ def _check_values(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: l
         raise FeatureValueError(f"feature value {what}: {fs.columns[c]} = {x[r, c]:.3g}",
                                 element_name(model, _NODE_KIND[types[r]], ids[r]))
     t = np.asarray(types)
+    if not _outside(fs, x, t):
+        return
     out = []
     for f in fs.features:
         if f.transform == "categorical":
@@ -201,39 +234,38 @@ def model_to_graph(
     with_geoms = "geom" in fs.node_types
     root, warns = robot_root(model)
     warns = list(warnings or []) + warns
-    writer = _Writer(model, fs)
     kids: list[list[int]] = [[] for _ in range(model.nbody)]
     for b, p in enumerate(model.body_parentid.tolist()[1:], start=1):
         kids[p].append(b)
+    jntadr, jntnum = model.body_jntadr.tolist(), model.body_jntnum.tolist()
+    geomadr, geomnum = model.body_geomadr.tolist(), model.body_geomnum.tolist()
+    graph_geoms = _PRIMITIVE[model.geom_type] | (model.geom_type == _MESH)
     parent: list[int] = []
     types: list[int] = []
     ids: list[int] = []
-    rows: list[np.ndarray] = []
-    no_geom = 0
-
-    def add(p: int, t: int, mj_id: int) -> tuple[int, np.ndarray]:
-        parent.append(p)
-        types.append(t)
-        ids.append(mj_id)
-        rows.append(np.zeros(fs.dim))
-        return len(parent) - 1, rows[-1]
-
-    stack: list[tuple[int, int]] = [(root, -1)]  # (body, parent node)
+    stack: list[tuple[int, int]] = [(root, -1)]  # (body, parent node), depth-first pre-order
     while stack:
         b, p = stack.pop()
-        for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b]):
-            p, row = add(p, JOINT, j)
-            writer.joint(row, j)
-        p, row = add(p, LINK, b)
-        no_geom += not writer.link(row, b)
+        for j in range(jntadr[b], jntadr[b] + jntnum[b]):
+            parent.append(p)
+            types.append(JOINT)
+            ids.append(j)
+            p = len(parent) - 1
+        parent.append(p)
+        types.append(LINK)
+        ids.append(b)
+        p = len(parent) - 1
         if with_geoms:
-            for g in range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b]):
-                if model.geom_type[g] in GEOM_TYPE_IDS or model.geom_type[g] == _MESH:
-                    writer.geom(add(p, GEOM, g)[1], g)
+            for g in range(geomadr[b], geomadr[b] + geomnum[b]):
+                if graph_geoms[g]:
+                    parent.append(p)
+                    types.append(GEOM)
+                    ids.append(g)
         stack.extend((c, p) for c in reversed(kids[b]))
+    x64 = np.zeros((len(parent), fs.dim))
+    no_geom = _fill(model, fs, x64, np.asarray(types), np.asarray(ids, dtype=np.int64))
     if no_geom:
         warns.append(f"{no_geom} bodies without geoms: size features zero")
-    x64 = np.stack(rows)
     _check_values(model, fs, x64, types, ids, warns)
     x = torch.from_numpy(x64).float()
     return tree_data(parent, types, x, fs, name=name, source=source,
