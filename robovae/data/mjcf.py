@@ -95,6 +95,15 @@ def _first_actuators(model: mujoco.MjModel, joints: np.ndarray) -> np.ndarray:
     return first[joints]
 
 
+#: Features copied as they are from a compiled array (rows: the node's body / joint or dof).
+_LINK_ARRAYS = {"link.pos": "body_pos", "link.mass": "body_mass", "link.inertia": "body_inertia",
+                "link.quat": "body_quat", "link.subtreemass": "body_subtreemass",
+                "link.ipos": "body_ipos", "link.iquat": "body_iquat"}
+_JOINT_ARRAYS = {"joint.stiffness": "jnt_stiffness", "joint.axis": "jnt_axis",
+                 "joint.pos": "jnt_pos", "joint.armature": "dof_armature",
+                 "joint.damping": "dof_damping", "joint.frictionloss": "dof_frictionloss"}
+
+
 def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarray,
           ids: np.ndarray) -> int:
     """Write every feature of every node into ``x`` (rows in node order) straight from the
@@ -108,13 +117,8 @@ def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarra
 
     rows = np.flatnonzero(types == LINK)
     b = ids[rows]
-    put(rows, "link.pos", m.body_pos[b])
-    put(rows, "link.mass", m.body_mass[b])
-    put(rows, "link.inertia", m.body_inertia[b])
-    put(rows, "link.quat", m.body_quat[b])
-    put(rows, "link.subtreemass", m.body_subtreemass[b])
-    put(rows, "link.ipos", m.body_ipos[b])
-    put(rows, "link.iquat", m.body_iquat[b])
+    for key, attr in _LINK_ARRAYS.items():
+        put(rows, key, getattr(m, attr)[b])
     first = _first_geoms(m, b)
     has = first >= 0
     put(rows[has], "link.size", _geom_primitives(m, first[has])[3])
@@ -126,12 +130,8 @@ def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarra
     put(rows, "joint.type", np.eye(4)[m.jnt_type[j]])
     put(rows, "joint.limited", limited.astype(np.float64))
     put(rows, "joint.range", np.where(limited[:, None], m.jnt_range[j], 0.0))
-    put(rows, "joint.stiffness", m.jnt_stiffness[j])
-    put(rows, "joint.axis", m.jnt_axis[j])
-    put(rows, "joint.pos", m.jnt_pos[j])
-    put(rows, "joint.armature", m.dof_armature[dof])
-    put(rows, "joint.damping", m.dof_damping[dof])
-    put(rows, "joint.frictionloss", m.dof_frictionloss[dof])
+    for key, attr in _JOINT_ARRAYS.items():
+        put(rows, key, getattr(m, attr)[dof if attr.startswith("dof_") else j])
     act = _first_actuators(m, j)
     on = act >= 0
     a = act[on]
