@@ -20,37 +20,31 @@ _GEOM = {"capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "cylinder": mujoco.mjtGeom.mj
 _JOINT = {"hinge": mujoco.mjtJoint.mjJNT_HINGE, "slide": mujoco.mjtJoint.mjJNT_SLIDE,
           "ball": mujoco.mjtJoint.mjJNT_BALL}
 _TRUE, _FALSE = mujoco.mjtLimited.mjLIMITED_TRUE, mujoco.mjtLimited.mjLIMITED_FALSE
+_TRN_JOINT = mujoco.mjtTrn.mjTRN_JOINT
 
 
 def _fill(spec: mujoco.MjSpec, body, part: Part, conaff: int, actuators: bool) -> None:
     for k, j in enumerate(part.joints):
         name = f"{part.name}_j{k}"
-        js = body.add_joint(name=name, type=_JOINT[j.type], damping=j.damping,
-                            armature=j.armature, stiffness=j.stiffness)
-        if j.type != "ball":
-            js.axis = list(j.axis)
+        extra = {} if j.type == "ball" else {"axis": list(j.axis)}
         if j.range is not None:
-            js.limited = _TRUE
-            js.range = list(j.range)
-        else:
-            js.limited = _FALSE
+            extra.update(limited=_TRUE, range=list(j.range))
+        body.add_joint(name=name, type=_JOINT[j.type], damping=j.damping, armature=j.armature,
+                       stiffness=j.stiffness, limited=extra.pop("limited", _FALSE), **extra)
         if actuators and j.gear > 0:
-            act = spec.add_actuator(name=f"{name}_motor", target=name,
-                                    trntype=mujoco.mjtTrn.mjTRN_JOINT)
-            act.ctrllimited = _TRUE
-            act.ctrlrange = [-1.0, 1.0]
-            act.gear[0] = j.gear
+            spec.add_actuator(name=f"{name}_motor", target=name, trntype=_TRN_JOINT,
+                              ctrllimited=_TRUE, ctrlrange=[-1.0, 1.0],
+                              gear=[j.gear, 0.0, 0.0, 0.0, 0.0, 0.0])
     for g in part.geoms:
         if g.fromto is not None:
-            gs = body.add_geom(type=_GEOM[g.type], fromto=list(g.fromto),
-                               size=[g.radius, 0.0, 0.0], mass=g.mass)
+            body.add_geom(type=_GEOM[g.type], fromto=list(g.fromto), size=[g.radius, 0.0, 0.0],
+                          mass=g.mass, conaffinity=conaff)
         elif g.type == "sphere":
-            gs = body.add_geom(type=_GEOM["sphere"], pos=list(g.pos),
-                               size=[g.radius, 0.0, 0.0], mass=g.mass)
+            body.add_geom(type=_GEOM["sphere"], pos=list(g.pos), size=[g.radius, 0.0, 0.0],
+                          mass=g.mass, conaffinity=conaff)
         else:
-            gs = body.add_geom(type=_GEOM["box"], pos=list(g.pos), size=list(g.half),
-                               mass=g.mass)
-        gs.conaffinity = conaff
+            body.add_geom(type=_GEOM["box"], pos=list(g.pos), size=list(g.half), mass=g.mass,
+                          conaffinity=conaff)
 
 
 def build_spec(plan: RobotPlan) -> mujoco.MjSpec:
