@@ -23,6 +23,7 @@ import robovae
 from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
 from robovae.data.graph import RobotData, limbs
 from robovae.data.mjcf import mjcf_to_graph
+from robovae.data.procedural.batch import procedural_graphs
 from robovae.data.sources import resolve_sources
 from robovae.errors import RobotFileError, RobovaeError
 
@@ -73,7 +74,7 @@ class RobotDataset(InMemoryDataset):
     """Robot graphs from MJCF/URDF files, Menagerie, the zoo or synthetic generators.
 
     Args:
-        root: cache folder (processed graphs, generated procedural MJCF).
+        root: cache folder (processed graphs and their build report).
         sources: source strings (see :mod:`robovae.data.sources`), default ``["zoo"]``.
         feature_set: registry name (``paper34``, ``full``); synthetic sources force
             ``random<d>``.
@@ -101,7 +102,7 @@ class RobotDataset(InMemoryDataset):
         self.jobs = jobs or (os.cpu_count() or 1)
         self.progress = progress
         root = Path(root)
-        self._resolved = resolve_sources(self.sources, root)
+        self._resolved = resolve_sources(self.sources)
         self.feature_set = self._resolved.feature_set or feature_set
         get_feature_set(self.feature_set)  # fail early on unknown names
         self._key = self._fingerprint()
@@ -122,6 +123,8 @@ class RobotDataset(InMemoryDataset):
                 h.update(f"{name}|{path}|missing".encode())
         for g in self._resolved.graphs:
             h.update(graph_key(g).encode())
+        for src in self._resolved.procedural:  # generated from the key alone: deterministic
+            h.update(src.key().encode())
         return h.hexdigest()[:16]
 
     @property
@@ -164,6 +167,8 @@ class RobotDataset(InMemoryDataset):
         skipped."""
         graphs, skipped = self._load_files()
         graphs += self._resolved.graphs
+        for src in self._resolved.procedural:
+            graphs += procedural_graphs(src, self.feature_set, self.jobs, self.progress)
         kept, duplicates, seen, names = [], [], {}, set()
         for g in graphs:
             key = graph_key(g)

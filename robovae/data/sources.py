@@ -10,7 +10,9 @@ source                           robots
 ``file:PATH`` or ``PATH``        one file (a bare folder path acts as ``dir:``)
 ``synthetic:n=20,nodes=15,dim=5``  the paper's random trees (``seed=``, ``unseen=1`` adds one
                                  tree not isomorphic to the others, named ``random_unseen``)
-``procedural:n=1000,seed=0``     procedural legged robots written as MJCF (``kinds=a+b``)
+``procedural:n=1000,seed=0``     procedural robots built in memory, in parallel, when the dataset
+                                 is built (``classes=quadruped+humanoid``; see
+                                 :mod:`robovae.data.procedural`)
 ================================ ===========================================================
 """
 
@@ -21,7 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from robovae.data.graph import RobotData
-from robovae.data.mjcf import SUFFIXES
+from robovae.data.procedural.batch import ProceduralSource, parse_procedural
+from robovae.data.robot_file import SUFFIXES
 from robovae.errors import RobovaeError
 
 
@@ -31,6 +34,7 @@ class Resolved:
 
     files: list[tuple[str | None, Path]] = field(default_factory=list)  # (name or None, path)
     graphs: list[RobotData] = field(default_factory=list)
+    procedural: list[ProceduralSource] = field(default_factory=list)  # built by the dataset
     warnings: list[str] = field(default_factory=list)
     feature_set: str | None = None  # forced by synthetic sources (random<d>)
 
@@ -85,8 +89,12 @@ def menagerie_file(name: str) -> Path:
     raise RobovaeError(f"robovae: menagerie:{name}: no robot file in {folder}")
 
 
-def resolve_sources(sources: list[str] | tuple[str, ...], cache_dir: Path) -> Resolved:
-    """Expand source strings into files and in-memory graphs (see the module table)."""
+def resolve_sources(sources: list[str] | tuple[str, ...]) -> Resolved:
+    """Expand source strings into files, in-memory graphs and procedural batches (module table).
+
+    Raises:
+        RobovaeError: an unknown source or a bad option (one line).
+    """
     out = Resolved()
     for src in sources:
         kind, _, arg = src.partition(":") if ":" in src else ("", "", src)
@@ -120,13 +128,7 @@ def resolve_sources(sources: list[str] | tuple[str, ...], cache_dir: Path) -> Re
             out.graphs += trees
             out.feature_set = f"random{dim}"
         elif kind == "procedural":
-            from robovae.data.procedural import write_procedural
-
-            o = _options(arg)
-            n, seed = int(o.get("n", 100)), int(o.get("seed", 0))
-            kinds = o["kinds"].split("+") if "kinds" in o else None
-            folder = cache_dir / "raw" / f"procedural_n{n}_s{seed}_{'+'.join(kinds or ['all'])}"
-            out.files += [(None, p) for p in write_procedural(folder, n, seed=seed, kinds=kinds)]
+            out.procedural.append(parse_procedural(arg))
         else:
             raise RobovaeError(f"robovae: unknown source '{src}' (zoo, menagerie:, dir:, file:, "
                                "synthetic:, procedural:)")

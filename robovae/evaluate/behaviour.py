@@ -40,7 +40,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings
 from robovae.evaluate.population import knn_entropy
 from robovae.evaluate.quality.stage import MOVING, prepare
 from robovae.evaluate.quality.stage import unstable as is_unstable

@@ -1,6 +1,6 @@
 """The scene a robot is rendered in: a floor, lights, a sky, markers for bodies without geoms.
 
-A robot file (``.xml``/``.urdf``, loaded with :func:`robovae.data.mjcf.load_robot`, so Menagerie
+A robot file (``.xml``/``.urdf``, loaded with :func:`robovae.data.loading.load_robot`, so Menagerie
 files whose meshes are missing still load) or a :class:`mujoco.MjSpec` that has no floor is
 wrapped with ``MjSpec`` edits (:func:`add_floor`): a checkered floor plane at ``z = min(0,
 lowest robot point)`` whose squares are the largest ``1, 2 or 5 × 10^k`` m not above half the
@@ -25,7 +25,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import capture_mujoco_warnings, load_robot
+from robovae.data.loading import capture_mujoco_warnings, load_robot
 from robovae.evaluate.camera import robot_bounds
 
 __all__ = ["Prepared", "Robot", "add_floor", "has_floor", "inject_floor", "inject_skeleton",

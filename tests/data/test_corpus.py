@@ -3,7 +3,7 @@
 ``tests/data/corpus`` holds small hand-written files (``bad_*``: must fail with the one-line
 error ``robovae: <file>: <what> (<element/line>)``, ``good_*``: must load, some with a
 documented warning). The large cases — 5,000 bodies, a chain 1,000 deep (MJCF and URDF), more
-bodies than :data:`robovae.data.mjcf.MAX_BODIES` — and a FIFO are generated in a temporary
+bodies than :data:`robovae.data.robot_file.MAX_BODIES` — and a FIFO are generated in a temporary
 folder. Every load runs under a per-test timeout (``thread`` method: a hang inside MuJoCo's C
 code still ends the run instead of stalling CI).
 """
@@ -21,7 +21,8 @@ import pytest
 from robovae.cli import main
 from robovae.data.dataset import RobotDataset
 from robovae.data.features import JOINT, LINK
-from robovae.data.mjcf import MAX_BODIES, mjcf_to_graph, model_to_graph
+from robovae.data.mjcf import mjcf_to_graph, model_to_graph
+from robovae.data.robot_file import MAX_BODIES
 from robovae.errors import RobotFileError
 from tests.conftest import CORPUS
 

@@ -9,7 +9,8 @@ import torch
 
 from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
 from robovae.data.graph import children, from_networkx, limbs, to_networkx
-from robovae.data.mjcf import load_robot, mjcf_to_graph, model_to_graph
+from robovae.data.loading import load_robot
+from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.zoo import zoo_files
 
 MENAGERIE_17 = ["agilex_piper/piper.xml", "agility_cassie/cassie.xml",

@@ -1,4 +1,4 @@
-"""Tests of the procedural legged-robot generator."""
+"""Tests of the procedural robot generator (robovae.data.procedural)."""
 
 from __future__ import annotations
 
@@ -7,134 +7,250 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+import torch
 
+from robovae.cli import main
+from robovae.data.dataset import RobotDataset
+from robovae.data.features import get_feature_set
+from robovae.data.graph import limbs
+from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.procedural import (
-    KINDS,
+    CLASSES,
     ProceduralConfig,
+    default_mix,
+    parse_procedural,
+    procedural_graphs,
     procedural_name,
     procedural_plan,
     procedural_spec,
     write_procedural,
 )
+from robovae.data.procedural.robots import draw_class
+from robovae.errors import RobovaeError
+from robovae.evaluate.behaviour import standing_test
 
-HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+HINGE, SLIDE = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
 FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+FLOATING = [c for c in CLASSES if c != "arm"]
 
 
-def simulate_on_floor(path: Path, seconds: float = 1.0) -> mujoco.MjData:
-    """Load a robot file, add a floor to a copy of its spec and simulate."""
-    spec = mujoco.MjSpec.from_file(str(path))
+def on_floor(spec: mujoco.MjSpec) -> mujoco.MjModel:
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1])
-    model = spec.compile()
+    return spec.compile()
+
+
+def detached(model: mujoco.MjModel) -> list[str]:
+    """Bodies none of whose geoms comes within 5 % of the robot's extent of a parent geom."""
     data = mujoco.MjData(model)
-    data.ctrl[:] = np.random.default_rng(0).uniform(-1, 1, model.nu)
-    for _ in range(round(seconds / model.opt.timestep)):
-        mujoco.mj_step(model, data)
-    return data
+    mujoco.mj_forward(model, data)
+    tol = 0.05 * model.stat.extent
+    out = []
+    for b in range(2, model.nbody):
+        p = model.body_parentid[b]
+        mine = range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b])
+        theirs = range(model.body_geomadr[p], model.body_geomadr[p] + model.body_geomnum[p])
+        if not any(mujoco.mj_geomDistance(model, data, g, h, 1.0, None) <= tol
+                   for g in mine for h in theirs):
+            out.append(model.body(b).name)
+    return out
 
 
-def test_deterministic_per_seed() -> None:
-    for kind in (*KINDS, None):
-        assert procedural_spec(42, kind).to_xml() == procedural_spec(42, kind).to_xml()
-    assert procedural_spec(1, "legged").to_xml() != procedural_spec(2, "legged").to_xml()
-    assert procedural_plan(3) == procedural_plan(3)
+@pytest.mark.parametrize("kind", CLASSES)
+def test_every_class_compiles_and_simulates_one_second(kind: str) -> None:
+    for seed in range(3):
+        model = on_floor(procedural_spec(seed, kind))
+        data = mujoco.MjData(model)
+        data.ctrl[:] = np.random.default_rng(seed).uniform(-1, 1, model.nu)
+        for _ in range(round(1.0 / model.opt.timestep)):
+            mujoco.mj_step(model, data)
+        assert np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all(), (kind, seed)
+        assert not any(w.number for w in data.warning), (kind, seed)
+        if kind != "arm":
+            assert data.qpos[2] > 0.0, (kind, seed)  # did not fall through the floor
 
 
-def test_names() -> None:
-    assert procedural_spec(42, "quadruped").modelname == "proc_quadruped_00042"
-    assert procedural_name("hexapod", 7) == "proc_hexapod_00007"
-    assert procedural_spec(5).modelname.startswith("proc_")
+@pytest.mark.parametrize("kind", FLOATING)
+def test_floating_robots_stand_when_held(kind: str) -> None:
+    for seed in range(2):
+        r = standing_test(procedural_spec(seed, kind), seconds=1.0)
+        assert r["floating"] and r["stands"] and not r["unstable"], (kind, seed, r)
 
 
-@pytest.mark.parametrize("kind", KINDS)
-def test_counts_match_the_plan(kind: str) -> None:
-    for seed in range(10):
+@pytest.mark.parametrize("kind", CLASSES)
+def test_bodies_are_joined_and_only_the_robot_is_there(kind: str) -> None:
+    for seed in range(3):
         plan = procedural_plan(seed, kind)
         model = procedural_spec(seed, kind).compile()
-        assert model.nbody == 2 + plan.num_segments  # world, torso, segments
-        assert model.njnt == 1 + plan.num_hinges
-        assert model.nu == plan.num_hinges
-        assert model.jnt_type[0] == FREE and (model.jnt_type[1:] == HINGE).all()
-        roles = plan.roles()
-        if kind == "quadruped":
-            assert roles == {"leg": 4}
-        elif kind == "hexapod":
-            assert roles == {"leg": 6}
-        elif kind == "humanoid":
-            assert roles == {"leg": 2, "arm": 2, "head": 1}
-        else:
-            assert set(roles) == {"leg"} and 2 <= roles["leg"] <= 8
-        # every limb hangs off the torso; every segment body has 1-2 hinges
-        assert int((model.body_parentid == 1).sum()) == plan.num_limbs
-        per_body = np.bincount(model.jnt_bodyid[1:], minlength=model.nbody)[2:]
-        assert ((per_body >= 1) & (per_body <= 2)).all()
-
-
-def test_config_controls_the_limbs() -> None:
-    cfg = ProceduralConfig(legged_legs=(5, 5), leg_segments=(3, 3), two_hinge_prob=0.0,
-                           actuators=False)
-    plan = procedural_plan(0, "legged", cfg)
-    model = procedural_spec(0, "legged", cfg).compile()
-    assert plan.roles() == {"leg": 5}
-    assert model.nbody == 2 + 5 * 3 and model.njnt == 1 + 5 * 3 and model.nu == 0
-    two = procedural_spec(0, "quadruped", ProceduralConfig(two_hinge_prob=1.0)).compile()
-    assert np.bincount(two.jnt_bodyid[1:], minlength=two.nbody)[2:].tolist() == [2] * (
-        two.nbody - 2)
-    with pytest.raises(ValueError):
-        ProceduralConfig(kinds=("snake",))
-    with pytest.raises(ValueError):
-        procedural_spec(0, "snake")
-
-
-def test_joints_and_actuators_are_well_formed() -> None:
-    for kind in KINDS:
-        model = procedural_spec(11, kind).compile()
-        hinges = np.arange(1, model.njnt)
-        assert model.jnt_limited[hinges].all()
-        lo, hi = model.jnt_range[hinges].T
-        assert (lo < 0).all() and (hi > 0).all()
-        axes = np.abs(model.jnt_axis[hinges])
-        assert np.allclose(np.sort(axes, axis=1), [0, 0, 1])  # x, y or z
-        dofs = model.jnt_dofadr[hinges]
-        assert (model.dof_damping[dofs] > 0).all() and (model.dof_armature[dofs] > 0).all()
-        # one motor per hinge, limited controls, positive gear
-        assert sorted(model.actuator_trnid[:, 0].tolist()) == hinges.tolist()
-        assert model.actuator_ctrllimited.all() and (model.actuator_gear[:, 0] > 0).all()
-        assert (model.body_mass[1:] > 0).all()
-        geom_types = set(model.geom_type.tolist())
-        assert int(mujoco.mjtGeom.mjGEOM_SPHERE) in geom_types  # feet / head
-        assert geom_types <= {int(mujoco.mjtGeom.mjGEOM_SPHERE),
-                              int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_BOX)}
-
-
-def test_files_compile_and_simulate(tmp_path: Path) -> None:
-    paths = write_procedural(tmp_path, 32, seed=100, workers=1)  # 8 robots of each kind
-    assert len(paths) == 32 and all(p.exists() for p in paths)
-    assert {p.name.split("_")[1] for p in paths} == set(KINDS)
-    for path in paths:
-        model = mujoco.MjModel.from_xml_path(str(path))
-        assert model.names.split(b"\0")[0].decode() == path.stem  # model name = file stem
-        # only the robot: one top-level body, no floor / extra world geoms
-        assert int((model.body_parentid[1:] == 0).sum()) == 1
+        assert detached(model) == [], (kind, seed)
+        assert int((model.body_parentid[1:] == 0).sum()) == 1  # one robot, no floor
         assert int((model.geom_bodyid == 0).sum()) == 0
-        data = simulate_on_floor(path)
-        assert np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all(), path.name
-        assert not any(w.number for w in data.warning), path.name
-        assert data.qpos[2] > 0.0, path.name  # did not fall through the floor
+        assert model.nbody == 2 + plan.num_segments
+        assert model.njnt == plan.num_joints + plan.floating
+        assert model.nu == plan.num_actuators > 0
+        assert (model.jnt_type[0] == FREE) == plan.floating
+        lo, hi = model.jnt_range[model.jnt_limited.astype(bool)].T
+        assert (lo <= 0).all() and (hi >= 0).all()  # qpos0 inside every limit
+        assert (model.actuator_gear[:, 0] > 0).all() and model.actuator_ctrllimited.all()
+        assert (model.body_mass[1:] > 0).all()
+        if plan.floating:  # lowest point `clearance` above z = 0
+            spec = procedural_spec(seed, kind)
+            data = mujoco.MjData(model)
+            mujoco.mj_forward(model, data)
+            assert spec.bodies[1].pos[2] == pytest.approx(plan.height)
+
+
+def hinges_per_limb(model: mujoco.MjModel) -> list[int]:
+    """Hinges in each subtree hanging off the root body, in order."""
+    top = [b for b in range(model.nbody) if model.body_parentid[b] == 1 and b > 1]
+    out = []
+    for t in top:
+        bodies = [b for b in range(model.nbody) if b >= t and _under(model, b, t)]
+        out.append(int(sum((model.jnt_type[model.jnt_bodyid == b] == HINGE).sum()
+                           for b in bodies)))
+    return out
+
+
+def _under(model: mujoco.MjModel, b: int, t: int) -> bool:
+    while b > t:
+        b = model.body_parentid[b]
+    return b == t
+
+
+def test_real_joint_patterns() -> None:
+    for seed in range(8):
+        quad = procedural_spec(seed, "quadruped").compile()
+        assert model_to_graph(quad).num_nodes == 26  # go1/go2/a1/spot tree
+        assert hinges_per_limb(quad) == [3, 3, 3, 3]
+        axes = np.abs(quad.jnt_axis[1:4]).argmax(1).tolist()
+        assert axes == [0, 1, 1]  # abduction x, flexion y, knee y
+        assert hinges_per_limb(procedural_spec(seed, "hexapod").compile()) == [3] * 6
+        human = procedural_spec(seed, "humanoid").compile()
+        legs = hinges_per_limb(human)[:2]
+        assert legs[0] == legs[1] and 5 <= legs[0] <= 8  # 5-7 + a toe hinge
+        arm = procedural_spec(seed, "arm").compile()
+        assert 4 <= int((arm.jnt_type == HINGE).sum()) <= 9 and arm.jnt_type[0] != FREE
+        assert int((arm.jnt_type == SLIDE).sum()) in (0, 2)
+        mobile = procedural_spec(seed, "mobile_manipulator").compile()
+        wheels = [n for n in (mobile.body(b).name for b in range(mobile.nbody)) if "wheel" in n]
+        assert len(wheels) >= 2
+        biped = procedural_plan(seed, "biped")
+        assert biped.root.children[0].joints[0].type == "hinge"
+        assert limbs(model_to_graph(procedural_spec(seed, "biped").compile())) == 2
+
+
+def test_deterministic_per_seed_and_names() -> None:
+    for kind in (*CLASSES, None):
+        assert procedural_spec(42, kind).to_xml() == procedural_spec(42, kind).to_xml()
+    assert procedural_spec(1, "humanoid").to_xml() != procedural_spec(2, "humanoid").to_xml()
+    assert procedural_spec(42, "quadruped").modelname == procedural_name("quadruped", 42) \
+        == "proc_quadruped_00042"
+    assert procedural_spec(5).modelname == procedural_name(draw_class(5, default_mix()), 5)
+
+
+def test_batches_are_seeded_and_independent_of_workers() -> None:
+    src = parse_procedural("n=70,seed=3")
+    serial = procedural_graphs(src, jobs=1)
+    parallel = procedural_graphs(src, jobs=2)
+    other = procedural_graphs(parse_procedural("n=70,seed=4"), jobs=1)
+    assert [g.name for g in serial] == [g.name for g in parallel]
+    assert all(torch.equal(a.x, b.x) and torch.equal(a.parent, b.parent)
+               for a, b in zip(serial, parallel))
+    assert [g.name for g in serial] != [g.name for g in other]
+
+
+def test_class_mix() -> None:
+    mix = default_mix()
+    assert set(mix) == set(CLASSES) and sum(mix.values()) == pytest.approx(1.0)
+    drawn = [draw_class(s, mix) for s in range(4000)]
+    for c, w in mix.items():
+        assert drawn.count(c) / len(drawn) == pytest.approx(w, abs=0.03)
+    src = parse_procedural("n=40,classes=quadruped+humanoid*3")
+    assert src.mix == {"quadruped": 0.25, "humanoid": 0.75}
+    kinds = {g.name.split("_")[1] for g in procedural_graphs(src, jobs=1)}
+    assert kinds == {"quadruped", "humanoid"}
+
+
+@pytest.mark.parametrize("arg, message", [
+    ("n=-1", "n=-1 is outside"),
+    ("n=abc", "n='abc' is not an integer"),
+    ("classes=dragon", "unknown procedural class 'dragon'"),
+    ("n=5,size=3", "unknown option 'size'"),
+    ("n=5,classes=arm*x", "weight 'x' of class 'arm'"),
+    ("n=5,classes=arm*0", "needs a positive weight"),
+    ("n", "'n' is not key=value"),
+])
+def test_bad_specs_give_one_line_errors(arg: str, message: str, tmp_path: Path,
+                                        capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(RobovaeError, match=message):
+        parse_procedural(arg)
+    with pytest.raises(RobovaeError, match=message):
+        RobotDataset(tmp_path, [f"procedural:{arg}"], progress=False)
+    assert main(["data", "--source", f"procedural:{arg}", "--root", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and "Traceback" not in err
+    with pytest.raises(ValueError):
+        procedural_spec(0, "dragon")
+
+
+def inertia_tensors(g, fs: str) -> torch.Tensor:
+    """``R diag(I) R^T`` of every node from ``link.iquat`` and ``link.inertia`` (float64)."""
+    f = get_feature_set(fs)
+    q = g.x[:, f.slice("link.iquat")].double().numpy()
+    inertia = g.x[:, f.slice("link.inertia")].double().numpy()
+    out = np.zeros((len(q), 3, 3))
+    for i in range(len(q)):
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, q[i] / (np.linalg.norm(q[i]) or 1.0))
+        r = rot.reshape(3, 3)
+        out[i] = r @ np.diag(inertia[i]) @ r.T
+    return torch.from_numpy(out)
+
+
+def test_in_memory_graphs_equal_the_mjcf_files(tmp_path: Path) -> None:
+    src = parse_procedural("n=14,seed=11")
+    paths = write_procedural(tmp_path, 14, seed=11, workers=1)
+    for fs in ("paper34", "full"):
+        for g, path in zip(procedural_graphs(src, fs, jobs=1), paths):
+            f = mjcf_to_graph(path, fs)
+            assert g.name == f.name == path.stem
+            for key in ("parent", "node_type", "x_mask", "depth"):
+                assert torch.equal(g[key], f[key]), (path.name, key)
+            # the file holds MuJoCo's 6 significant digits, the in-memory graph full values;
+            # principal inertia axes are not unique when two moments (nearly) agree, so links
+            # compare their inertia tensors, not ``link.iquat``
+            sl = get_feature_set(fs).slice("link.iquat")
+            keep = torch.ones(g.x.shape[1], dtype=torch.bool)
+            keep[sl] = False
+            assert torch.allclose(g.x[:, keep], f.x[:, keep], rtol=2e-4, atol=1e-6), path.name
+            links = g.node_type == 0
+            a, b = inertia_tensors(g, fs)[links], inertia_tensors(f, fs)[links]
+            scale = a.abs().amax(dim=(1, 2), keepdim=True)
+            assert torch.allclose(a / scale, b / scale, atol=1e-3), path.name
+
+
+def test_dataset_caches_procedural_sources(tmp_path: Path) -> None:
+    ds = RobotDataset(tmp_path, ["procedural:n=12,seed=2"], progress=False)
+    assert len(ds) == 12 and ds.names[0] == procedural_name(draw_class(2, default_mix()), 2)
+    again = RobotDataset(tmp_path, ["procedural:n=12,seed=2"], progress=False)
+    assert again.processed_paths == ds.processed_paths
+    assert torch.equal(again[5].x, ds[5].x)
+    other = RobotDataset(tmp_path, ["procedural:n=12,seed=3"], progress=False)
+    assert other.processed_paths != ds.processed_paths
+
+
+def test_config_strength_and_actuators() -> None:
+    strong = procedural_spec(0, "quadruped").compile()
+    weak = procedural_spec(0, "quadruped", ProceduralConfig(gear=(0.001, 0.002))).compile()
+    assert (weak.actuator_gear[:, 0] < 0.01 * strong.actuator_gear[:, 0]).all()
+    assert procedural_spec(0, "quadruped", ProceduralConfig(actuators=False)).compile().nu == 0
+    with pytest.raises(ValueError):
+        ProceduralConfig(mix={"dragon": 1.0})
 
 
 def test_write_skips_existing_files_and_is_atomic(tmp_path: Path) -> None:
-    paths = write_procedural(tmp_path, 6, seed=3, kinds=["quadruped", "humanoid"], workers=1)
-    assert [p.name for p in paths[:2]] == ["proc_quadruped_00003.xml", "proc_humanoid_00004.xml"]
-    assert paths[0].read_text() == procedural_spec(3, "quadruped").to_xml()
+    paths = write_procedural(tmp_path, 6, seed=3, classes=["quadruped", "humanoid"], workers=1)
+    assert paths[0].read_text() == procedural_spec(3, paths[0].stem.split("_")[1]).to_xml()
     paths[0].write_text("keep me")
-    again = write_procedural(tmp_path, 8, seed=3, kinds=["quadruped", "humanoid"], workers=1)
+    again = write_procedural(tmp_path, 8, seed=3, classes=["quadruped", "humanoid"], workers=1)
     assert again[:6] == paths and paths[0].read_text() == "keep me"
     assert sorted(tmp_path.iterdir()) == sorted(again)  # no temporary files left behind
-
-
-def test_parallel_write_matches_serial(tmp_path: Path) -> None:
-    serial = write_procedural(tmp_path / "a", 12, seed=9, workers=1)
-    parallel = write_procedural(tmp_path / "b", 12, seed=9, workers=2)
-    assert [p.name for p in serial] == [p.name for p in parallel]
-    assert all(a.read_text() == b.read_text() for a, b in zip(serial, parallel))

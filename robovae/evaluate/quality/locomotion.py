@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings
 from robovae.evaluate.quality.stage import Robot, stage
 
 __all__ = ["GaitResult", "gait", "gait_speed", "sinusoid_controls"]

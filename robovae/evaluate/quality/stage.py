@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import capture_mujoco_warnings, load_robot, robot_root
+from robovae.data.loading import capture_mujoco_warnings, load_robot
+from robovae.data.mjcf import robot_root
 from robovae.errors import RobovaeError
 
 # plain ints: MjModel arrays hold ints, which do not compare equal to the pybind enums

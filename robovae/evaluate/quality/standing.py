@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings
 from robovae.evaluate.quality.stage import MOVING, Robot, robot_points, stage, unstable
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)

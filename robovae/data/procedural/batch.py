@@ -1,0 +1,221 @@
+"""Many procedural robots at once: graphs for datasets (in parallel), or MJCF files.
+
+Robot ``i`` of a batch ``(n, seed, mix)`` has seed ``seed + i`` and its class drawn from the
+mix (:func:`~robovae.data.procedural.robots.draw_class`), so a batch is the same for the same
+``n``, ``seed`` and mix, whatever the number of workers.
+
+:func:`procedural_graphs` takes the fast path: each worker samples a plan, builds its
+``MjSpec``, compiles it and reads the graph from the compiled ``MjModel``
+(:func:`~robovae.data.mjcf.model_to_graph`), never writing or parsing XML. The graph equals
+the one of the MJCF file :func:`write_procedural` writes up to the 6 significant digits MuJoCo
+writes numbers with (``tests/data/test_procedural.py`` checks it).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import warnings
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from multiprocessing import get_all_start_methods, get_context
+from pathlib import Path
+
+import torch
+
+from robovae.data.graph import RobotData
+from robovae.data.mjcf import model_to_graph
+from robovae.data.procedural.robots import (
+    CLASSES,
+    ProceduralConfig,
+    check_classes,
+    default_mix,
+    draw_class,
+    procedural_spec,
+)
+from robovae.errors import RobovaeError
+
+#: Most robots one ``procedural:`` source may ask for.
+MAX_ROBOTS = 10_000_000
+
+
+@dataclass(frozen=True)
+class ProceduralSource:
+    """A parsed ``procedural:`` source: ``n`` robots from ``seed`` with class ``mix``."""
+
+    n: int
+    seed: int
+    mix: dict[str, float]
+
+    def key(self) -> str:
+        """A string naming the batch (for cache keys and folder names)."""
+        mix = "+".join(f"{c}{w:.4g}" for c, w in sorted(self.mix.items()))
+        return f"procedural_n{self.n}_s{self.seed}_{mix}"
+
+
+def _int(name: str, text: str, lo: int, hi: int) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise RobovaeError(f"robovae: procedural source: {name}={text!r} is not an integer") \
+            from None
+    if not lo <= v <= hi:
+        raise RobovaeError(f"robovae: procedural source: {name}={v} is outside [{lo}, {hi}]")
+    return v
+
+
+def parse_procedural(arg: str) -> ProceduralSource:
+    """Parse the options of ``procedural:n=1000,seed=0,classes=quadruped+humanoid``.
+
+    ``classes`` lists classes with equal weights, or ``class*weight`` terms
+    (``quadruped*3+arm``); the default is :func:`~robovae.data.procedural.default_mix`.
+
+    Raises:
+        RobovaeError: one line naming the bad option (not ``key=value``, unknown key, ``n``
+            or ``seed`` not an integer or negative, an unknown class, a bad weight).
+    """
+    opts: dict[str, str] = {}
+    for part in filter(None, (p.strip() for p in arg.split(","))):
+        if "=" not in part:
+            raise RobovaeError(f"robovae: procedural source: option '{part}' is not key=value")
+        k, v = (t.strip() for t in part.split("=", 1))
+        if k not in ("n", "seed", "classes"):
+            raise RobovaeError(f"robovae: procedural source: unknown option '{k}' "
+                               "(n, seed, classes)")
+        opts[k] = v
+    n = _int("n", opts.get("n", "100"), 1, MAX_ROBOTS)
+    seed = _int("seed", opts.get("seed", "0"), 0, 2**31 - 1)
+    mix: dict[str, float] = default_mix()
+    if "classes" in opts:
+        mix = {}
+        for term in filter(None, opts["classes"].split("+")):
+            name, _, w = term.partition("*")
+            try:
+                weight = float(w) if w else 1.0
+            except ValueError:
+                raise RobovaeError(f"robovae: procedural source: weight '{w}' of class "
+                                   f"'{name}' is not a number") from None
+            mix[name.strip()] = mix.get(name.strip(), 0.0) + weight
+        try:
+            mix = check_classes(mix)
+        except ValueError as e:
+            raise RobovaeError(f"robovae: procedural source: {e}") from None
+    return ProceduralSource(n, seed, mix)
+
+
+def _jobs(source: ProceduralSource) -> list[tuple[int, str]]:
+    return [(source.seed + i, draw_class(source.seed + i, source.mix)) for i in range(source.n)]
+
+
+def _graph_batch(jobs: list[tuple[int, str]], feature_set: str) -> list[dict]:
+    """Worker: robots → graph fields as numpy arrays (tensors would travel as shared-memory
+    file descriptors, which run out on large builds)."""
+    out = []
+    for seed, kind in jobs:
+        spec = procedural_spec(seed, kind)
+        data = model_to_graph(spec.compile(), feature_set, spec.modelname,
+                              f"procedural:{kind}:{seed}")
+        out.append({k: v.numpy() if isinstance(v, torch.Tensor) else v
+                    for k, v in data.to_dict().items()})
+    return out
+
+
+def _pool(workers: int) -> ProcessPoolExecutor:
+    # fork where available: workers only use numpy, mujoco and torch tensors already imported,
+    # and unlike spawn it works from unguarded scripts and notebooks
+    method = "fork" if "fork" in get_all_start_methods() else "spawn"
+    return ProcessPoolExecutor(workers, mp_context=get_context(method))
+
+
+def _run(fn, jobs: list, args: tuple, workers: int, progress: bool, desc: str) -> list:
+    """``fn(chunk, *args)`` over chunks of ``jobs`` in ``workers`` processes, results in order."""
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=len(jobs), desc=desc, unit="robot", disable=not progress)
+    if workers <= 1 or len(jobs) < 64:
+        out = []
+        for i in range(0, len(jobs), 256):
+            out += fn(jobs[i:i + 256], *args)
+            bar.update(len(jobs[i:i + 256]))
+        bar.close()
+        return out
+    chunk = max(16, min(500, math.ceil(len(jobs) / (8 * workers))))
+    chunks = [jobs[i:i + chunk] for i in range(0, len(jobs), chunk)]
+    results: list = [None] * len(chunks)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*fork.*", category=DeprecationWarning)
+        with _pool(workers) as pool:
+            futures = {pool.submit(fn, c, *args): k for k, c in enumerate(chunks)}
+            from concurrent.futures import as_completed
+
+            for f in as_completed(futures):
+                results[futures[f]] = f.result()
+                bar.update(len(chunks[futures[f]]))
+    bar.close()
+    return [r for part in results for r in part]
+
+
+def procedural_graphs(source: ProceduralSource, feature_set: str = "paper34", jobs: int = 0,
+                      progress: bool = False) -> list[RobotData]:
+    """The graphs of a procedural batch, built in ``jobs`` processes (0: all cores)."""
+    workers = jobs or (os.cpu_count() or 1)
+    fields = _run(_graph_batch, _jobs(source), (feature_set,), workers, progress, "robots")
+    return [RobotData(**{k: torch.from_numpy(v) if hasattr(v, "dtype") else v
+                         for k, v in f.items()}) for f in fields]
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _write_batch(jobs: list[tuple[int, str, str]], config: ProceduralConfig) -> list[None]:
+    for seed, kind, path in jobs:
+        _atomic_write(Path(path), procedural_spec(seed, kind, config).to_xml())
+    return [None] * len(jobs)
+
+
+def write_procedural(out_dir: str | os.PathLike, n: int, seed: int = 0,
+                     classes: Sequence[str] | Mapping[str, float] | None = None,
+                     config: ProceduralConfig | None = None, workers: int | None = None
+                     ) -> list[Path]:
+    """Write ``n`` robots as MJCF files ``<out_dir>/proc_<class>_<seed>.xml``, in robot order.
+
+    Robot ``i`` is robot ``seed + i`` of the batch (module docstring); ``classes`` (a list or
+    ``{class: weight}``) defaults to ``config.mix``. Existing files are left untouched (an
+    interrupted run resumes); new ones are written to a temporary file and moved into place.
+    ``workers``: processes (``None``: every CPU from 500 files to write, else in-process).
+
+    Raises:
+        ValueError: an unknown class or ``n < 0``.
+    """
+    cfg = config or ProceduralConfig()
+    if n < 0:
+        raise ValueError(f"n must be >= 0, got {n}")
+    mix = check_classes(classes) if classes is not None else dict(cfg.mix)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths, todo = [], []
+    for s in range(seed, seed + n):
+        kind = draw_class(s, mix)
+        path = out / f"proc_{kind}_{s:05d}.xml"
+        paths.append(path)
+        if not path.exists():
+            todo.append((s, kind, str(path)))
+    if workers is None:
+        workers = (os.cpu_count() or 1) if len(todo) >= 500 else 1
+    _run(_write_batch, todo, (cfg,), max(1, workers), False, "files")
+    return paths
+
+
+__all__ = ["CLASSES", "MAX_ROBOTS", "ProceduralSource", "parse_procedural", "procedural_graphs",
+           "write_procedural"]

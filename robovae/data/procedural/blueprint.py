@@ -1,0 +1,134 @@
+"""What a procedural robot is before it becomes an ``MjSpec``: a tree of parts.
+
+A :class:`Part` is one body: its position in the parent body's frame (all frames stay aligned
+with the world: x forward, y left, z up, no rotations), its joints, its geoms and its children.
+A :class:`Geom` is a capsule or cylinder from one point to another, a sphere or an
+axis-aligned box, with an explicit mass (MuJoCo computes the inertia from the shape). A
+:class:`Joint` is a hinge, slide or ball joint with its limits, damping and armature, and the
+gear of its motor (0: passive).
+
+:class:`RobotPlan` is a whole robot: its root part, whether the root floats (free joint) or is
+welded to the world, and the height of the root so that the lowest point sits ``clearance``
+above ``z = 0`` (:func:`lowest_point`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+Vec = tuple[float, float, float]
+
+
+@dataclass
+class Joint:
+    """A joint of a part: ``type`` is ``hinge``, ``slide`` or ``ball``; ``range`` is
+    ``(lo, hi)`` with ``lo <= 0 <= hi`` (``None``: unlimited); ``gear`` 0 means no motor."""
+
+    type: str
+    axis: Vec
+    range: tuple[float, float] | None
+    damping: float
+    armature: float
+    stiffness: float = 0.0
+    gear: float = 0.0
+
+
+@dataclass
+class Geom:
+    """A primitive with an explicit mass (kg): ``capsule``/``cylinder`` use ``fromto`` and
+    ``radius``; ``sphere`` uses ``pos`` and ``radius``; ``box`` uses ``pos`` and ``half``."""
+
+    type: str
+    mass: float
+    radius: float = 0.0
+    fromto: tuple[float, ...] | None = None
+    pos: Vec | None = None
+    half: Vec | None = None
+
+
+@dataclass
+class Part:
+    """One body: ``pos`` in the parent frame (m), joints in order, geoms, children."""
+
+    name: str
+    pos: Vec
+    joints: list[Joint] = field(default_factory=list)
+    geoms: list[Geom] = field(default_factory=list)
+    children: list[Part] = field(default_factory=list)
+
+    def add(self, child: Part) -> Part:
+        """Append ``child`` and return it."""
+        self.children.append(child)
+        return child
+
+    def walk(self) -> Iterator[tuple[Part, Vec]]:
+        """Every part of the subtree in pre-order, with its origin in this part's frame."""
+        stack: list[tuple[Part, Vec]] = [(self, (0.0, 0.0, 0.0))]
+        while stack:
+            p, o = stack.pop()
+            yield p, o
+            for c in reversed(p.children):
+                stack.append((c, (o[0] + c.pos[0], o[1] + c.pos[1], o[2] + c.pos[2])))
+
+    def mass(self) -> float:
+        """Mass of the subtree (kg)."""
+        return sum(g.mass for p, _ in self.walk() for g in p.geoms)
+
+
+@dataclass
+class RobotPlan:
+    """A sampled robot: ``name`` (``proc_<kind>_<seed>``), ``kind``, ``seed``, the ``root``
+    part, ``floating`` (free joint on the root, else welded to the world) and ``height`` (z of
+    the root origin)."""
+
+    name: str
+    kind: str
+    seed: int
+    root: Part
+    floating: bool
+    height: float = 0.0
+    actuators: bool = True
+    self_collision: bool = False
+
+    @property
+    def num_segments(self) -> int:
+        """Bodies below the root."""
+        return sum(1 for _ in self.root.walk()) - 1
+
+    @property
+    def num_joints(self) -> int:
+        """Joints besides the free joint."""
+        return sum(len(p.joints) for p, _ in self.root.walk())
+
+    @property
+    def num_hinges(self) -> int:
+        """Hinge joints."""
+        return sum(j.type == "hinge" for p, _ in self.root.walk() for j in p.joints)
+
+    @property
+    def num_actuators(self) -> int:
+        """Motors (joints with a gear) when ``actuators`` is on."""
+        if not self.actuators:
+            return 0
+        return sum(j.gear > 0 for p, _ in self.root.walk() for j in p.joints)
+
+
+def _low(g: Geom, o: Vec) -> float:
+    if g.type in ("capsule", "cylinder"):
+        a, b = g.fromto[:3], g.fromto[3:]
+        if g.type == "capsule":
+            return o[2] + min(a[2], b[2]) - g.radius
+        d = [b[i] - a[i] for i in range(3)]
+        n = math.sqrt(sum(x * x for x in d)) or 1.0
+        rim = g.radius * math.sqrt(max(0.0, 1.0 - (d[2] / n) ** 2))
+        return o[2] + min(a[2], b[2]) - rim
+    if g.type == "sphere":
+        return o[2] + g.pos[2] - g.radius
+    return o[2] + g.pos[2] - g.half[2]
+
+
+def lowest_point(root: Part) -> float:
+    """Lowest z of the robot in the root frame at ``qpos0`` (exact for these primitives)."""
+    return min(_low(g, o) for p, o in root.walk() for g in p.geoms)

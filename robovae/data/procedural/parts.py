@@ -1,0 +1,137 @@
+"""Parts every procedural class shares: joined limb chains, grippers, hands, wheels, motors.
+
+Geometry is *joined*: a body's capsule runs from its own origin (its joint anchor) to the origin
+of its child (:func:`chain`), so every body touches its parent and child. Motor gears are sized
+after the tree is built (:func:`size_motors`): a joint created with ``gear=AUTO`` gets the
+torque (N·m, or N for slides) that holds its subtree out against gravity,
+``M_sub · g · R_sub`` (``R_sub``: farthest geom point of the subtree from the joint; a slide
+gets the force ``2 M_sub · g``), and every
+gear is then multiplied by the robot's strength (``common.strength`` in ``ranges.yaml``).
+"""
+
+from __future__ import annotations
+
+import math
+
+from robovae.data.procedural.blueprint import Geom, Joint, Part, Vec
+from robovae.data.procedural.sampler import G, Sampler
+
+#: ``gear`` of a joint whose motor is sized from its subtree by :func:`size_motors`.
+AUTO = -1.0
+
+Link = tuple[list[Joint], Vec, float, float]  # joints, vector to the next anchor, radius, mass
+
+
+def add(a: Vec, b: Vec, k: float = 1.0) -> Vec:
+    """``a + k b``."""
+    return (a[0] + k * b[0], a[1] + k * b[1], a[2] + k * b[2])
+
+
+def norm(v: Vec) -> float:
+    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+def unit(v: Vec) -> Vec:
+    n = norm(v) or 1.0
+    return (v[0] / n, v[1] / n, v[2] / n)
+
+
+def cross(a: Vec, b: Vec) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def capsule(a: Vec, b: Vec, radius: float, mass: float) -> Geom:
+    """A capsule from ``a`` to ``b`` (a sphere when they coincide)."""
+    if norm((b[0] - a[0], b[1] - a[1], b[2] - a[2])) < 1e-6:
+        return Geom("sphere", mass, radius, pos=a)
+    return Geom("capsule", mass, radius, fromto=(*a, *b))
+
+
+def chain(parent: Part, prefix: str, anchor: Vec, links: list[Link]) -> tuple[Part, Vec]:
+    """Append a joined chain of bodies ``<prefix>0, <prefix>1, ...`` to ``parent``.
+
+    Body 0 sits at ``anchor`` (parent frame); body ``k+1`` at the end of body ``k``'s vector,
+    and body ``k``'s capsule spans that vector. Returns the last body and its tip (its frame).
+    """
+    body, pos = parent, anchor
+    for k, (joints, vec, radius, mass) in enumerate(links):
+        body = body.add(Part(f"{prefix}{k}", pos, list(joints)))
+        body.geoms.append(capsule((0.0, 0.0, 0.0), vec, radius, mass))
+        pos = vec
+    return body, pos
+
+
+def perpendicular(d: Vec) -> Vec:
+    """A unit vector perpendicular to ``d`` (horizontal when ``d`` is not vertical)."""
+    side = cross((0.0, 0.0, 1.0), d)
+    return unit(side) if norm(side) > 1e-6 else (0.0, 1.0, 0.0)
+
+
+def gripper(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec, scale: float,
+            hinged: bool) -> None:
+    """A parallel-jaw gripper at ``tip`` of ``body``: two fingers along ``direction``, on slide
+    joints across it (travel ``finger_travel``) or, when ``hinged``, on hinges."""
+    side = perpendicular(direction)
+    length = s.u("finger", scale)
+    travel = s.u("finger_travel", scale)
+    r = max(0.004, 0.15 * length)
+    axis = cross(direction, side)
+    for k, sgn in enumerate((1.0, -1.0)):
+        base = add(tip, side, sgn * 0.5 * travel)
+        if hinged:
+            j = s.hinge(axis, ((-0.1, -0.05), (0.6, 1.0)), gear=AUTO)
+        else:
+            j = s.slide((sgn * side[0], sgn * side[1], sgn * side[2]), (0.0, travel), gear=AUTO)
+        f = body.add(Part(f"{prefix}finger{k}", base, [j]))
+        f.geoms.append(capsule((0.0, 0.0, 0.0), add((0.0, 0.0, 0.0), direction, length), r,
+                               max(0.01, 20.0 * length ** 2)))
+
+
+def finger_hand(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec,
+                scale: float) -> None:
+    """A hand of ``fingers`` fingers with ``phalanges`` hinges each, spread across
+    ``direction`` at ``tip`` (the first finger is a thumb turned to the side)."""
+    side = perpendicular(direction)
+    axis = cross(direction, side)
+    n = s.i("fingers")
+    for k in range(n):
+        spread = (k - 0.5 * (n - 1)) * 0.018 * scale
+        d = direction if k else unit(add(direction, axis, 0.8))
+        links: list[Link] = []
+        for _ in range(s.i("phalanges")):
+            ln = s.u("phalanx", scale)
+            links.append(([s.hinge(axis, ((-0.2, -0.05), (0.8, 1.6)), gear=AUTO)],
+                          (d[0] * ln, d[1] * ln, d[2] * ln), max(0.004, 0.2 * ln),
+                          max(0.005, 15.0 * ln ** 2)))
+        chain(body, f"{prefix}f{k}_", add(tip, side, spread), links)
+
+
+def wheel(body: Part, name: str, pos: Vec, radius: float, width: float, mass: float,
+          joint: Joint) -> Part:
+    """A wheel body at ``pos`` spinning about y: a cylinder across y."""
+    w = body.add(Part(name, pos, [joint]))
+    w.geoms.append(Geom("cylinder", mass, radius, fromto=(0.0, -0.5 * width, 0.0,
+                                                          0.0, 0.5 * width, 0.0)))
+    return w
+
+
+def _reach(part: Part) -> float:
+    """Farthest geom point of ``part``'s subtree from its origin (m)."""
+    far = 0.0
+    for p, o in part.walk():
+        for g in p.geoms:
+            pts = [g.fromto[:3], g.fromto[3:]] if g.fromto is not None else [g.pos]
+            for q in pts:
+                far = max(far, norm(add(o, q)) + g.radius)
+    return far
+
+
+def size_motors(root: Part, strength: float) -> None:
+    """Resolve ``AUTO`` gears to ``M_sub · g · R_sub`` and scale every gear by ``strength``."""
+    for p, _ in root.walk():
+        for j in p.joints:
+            if j.gear == AUTO and j.type == "slide":
+                j.gear = max(1.0, 2.0 * p.mass() * G)
+            elif j.gear == AUTO:
+                j.gear = max(0.05, p.mass() * G * _reach(p))
+            j.gear *= strength
