@@ -18,6 +18,7 @@ import multiprocessing
 import os
 import re
 import shutil
+import tempfile
 import time
 from collections import Counter
 from collections.abc import Iterator, Sequence
@@ -61,7 +62,7 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
     two models' robots), unless ``overwrite``: then robovae's own files (``robot_<i>/``,
     manifests, summary) are deleted first — nothing else in the folder is touched.
     """
-    out.mkdir(parents=True, exist_ok=True)
+    writable(out)
     path = out / RUN
     old = json.loads(path.read_text()) if path.is_file() else None
     has_robots = bool(read_manifest(out))
@@ -79,6 +80,20 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
         elif re.fullmatch(r"manifest.*\.jsonl|summary\.json|run\.json", item.name):
             item.unlink()
     _atomic_json(path, run)
+
+
+def writable(out: Path) -> None:
+    """Create the folder ``out`` (and its parents) and check that files can be made in it.
+
+    Raises:
+        RobovaeError: one line naming ``out`` when it cannot be created or written to.
+    """
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()
+    except OSError as e:
+        raise RobovaeError(f"robovae: {out}: cannot write robots there "
+                           f"({e.strerror or type(e).__name__})") from None
 
 
 def _atomic_json(path: Path, obj: dict) -> None:
@@ -195,9 +210,16 @@ def generate(
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
+    Raises:
+        RobovaeError: ``n`` is not a positive integer, ``out`` cannot be written to, or it
+            holds robots of another run.
+
     ``out`` is tied to the model and settings that started it (``run.json``): resuming with
     another checkpoint, seed or temperature is refused unless ``overwrite``.
     """
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
+                           f"not {n!r}")
     start = time.perf_counter()
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
     out = Path(out)

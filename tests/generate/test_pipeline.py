@@ -130,6 +130,43 @@ def test_cli_generate_bad_checkpoint_is_one_line(tmp_path, capsys):
     assert err.startswith(f"robovae: {bad}") and "\n" not in err
 
 
+@pytest.mark.parametrize("n", ["-5", "0"])
+def test_cli_generate_n_must_be_a_positive_integer(trained, n, tmp_path, capsys):
+    _, _, ckpt = trained
+    code = main(["generate", "--ckpt", str(ckpt), "-n", n, "--out", str(tmp_path / "g")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "-n" in err and "\n" not in err
+    assert not (tmp_path / "g").exists()  # nothing written
+
+
+def test_cli_generate_n_not_an_integer_is_a_usage_error(trained, tmp_path):
+    _, _, ckpt = trained
+    with pytest.raises(SystemExit) as e:
+        main(["generate", "--ckpt", str(ckpt), "-n", "2.5", "--out", str(tmp_path / "g")])
+    assert e.value.code == 2 and not (tmp_path / "g").exists()
+
+
+def test_generate_n_must_be_a_positive_integer(trained, tmp_path):
+    _, _, ckpt = trained
+    for n in (-5, 0, 1.0, True):
+        with pytest.raises(RobovaeError, match="positive integer"):
+            generate(ckpt, n, tmp_path / "g", progress=False)
+    assert not (tmp_path / "g").exists()
+
+
+def test_cli_generate_unwritable_out_is_one_line(trained, tmp_path, capsys):
+    """An --out below a file cannot be created (chmod does not stop root: a file as parent)."""
+    _, _, ckpt = trained
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    for out in (blocker / "g", blocker):
+        assert main(["generate", "--ckpt", str(ckpt), "-n", "2", "--out", str(out),
+                     "--jobs", "1"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith(f"robovae: {out}: cannot write") and "\n" not in err
+    assert blocker.read_text() == "not a folder"
+
+
 def test_a_folder_of_another_run_is_refused_unless_overwrite(trained, tmp_path):
     _, _, ckpt = trained
     out = tmp_path / "gen"
