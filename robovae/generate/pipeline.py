@@ -35,6 +35,7 @@ from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.rules import floating_base
+from robovae.generate.symmetry import mirror_limbs
 from robovae.generate.validate import validate_robot
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
@@ -207,6 +208,8 @@ def generate(
     scene: bool = True,
     overwrite: bool = False,
     floating: bool = True,
+    mirror: bool = True,
+    node_temperature: float | None = None,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -215,7 +218,11 @@ def generate(
             holds robots of another run.
 
     ``out`` is tied to the model and settings that started it (``run.json``): resuming with
-    another checkpoint, seed or temperature is refused unless ``overwrite``.
+    another checkpoint, seed or temperature is refused unless ``overwrite``. ``temperature``
+    scales the robot latent ``z``; ``node_temperature`` (default: ``temperature``) the node
+    latents' noise (the detail of each node). ``mirror``: near-mirror limb pairs become exact
+    mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`, reported as
+    ``mirror_limbs``).
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
@@ -224,7 +231,8 @@ def generate(
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
     out = Path(out)
     claim(out, {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
-                "feature_set": model.feature_set.name, "floating": floating}, overwrite)
+                "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
+                "node_temperature": node_temperature}, overwrite)
     # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
     # a robot must not depend on which robots it was decoded with (byte-identical files)
     model = model.to(torch.float64)
@@ -239,10 +247,12 @@ def generate(
             (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
         for chunk in _chunks(todo, batch_size):
             z, noise = prior_latents(model, seed, chunk, temperature)
+            if node_temperature is not None:
+                noise = prior_latents(model, seed, chunk, node_temperature)[1]
             records = write_records(model, chunk, z, model.decode(z, node_noise=noise), out,
                                     seed=seed,
                                     temperature=temperature, validate=validate, jobs=jobs,
-                                    scene=scene, floating=floating, pool=pool)
+                                    scene=scene, floating=floating, pool=pool, mirror=mirror)
             append_records(manifest, records)
             bar.update(len(chunk))
     bar.close()
@@ -275,13 +285,15 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   graphs: Sequence[RobotData], out: Path, seed: int = 0,
                   temperature: float = 1.0, validate: bool = True, jobs: int = 0,
                   scene: bool = True, floating: bool = True,
-                  pool: Executor | None = None) -> list[dict]:
+                  pool: Executor | None = None, mirror: bool = True) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
     validate them. Returns one manifest record per robot (the caller appends them).
 
     Writing and validation run in ``pool`` (or ``jobs`` worker processes, 0: all cores; 1: in
     this process). With ``floating``, a robot whose root is a single joint gets a floating
-    base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``).
+    base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
+    ``mirror``, near-mirror limb pairs are mirrored (:func:`~robovae.generate.symmetry.
+    mirror_limbs`, listed as ``mirror_limbs``).
     """
     records, items = [], []
     fs = model.feature_set
@@ -291,6 +303,9 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
         if floating:
             g, changed = floating_base(g, fs)
             fixes += ["floating_base"] if changed else []
+        if mirror:
+            g, changed = mirror_limbs(g, fs)
+            fixes += ["mirror_limbs"] if changed else []
         rec = robot_record(g, model.normalizer)
         rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
                    latent=[round(float(v), 6) for v in zi], rules=fixes,

@@ -90,6 +90,18 @@ def test_node_noise_depends_on_seed_and_index_only(trained_nodes):
     assert prior_latents(trained_nodes[0].__class__(), 0, [1])[1] is None  # no node latents
 
 
+def test_node_temperature_sets_the_node_noise_only(trained_nodes, tmp_path):
+    _, _, ckpt = trained_nodes
+    kw = dict(seed=2, validate=False, progress=False, jobs=1)
+    generate(ckpt, 4, tmp_path / "a", **kw)
+    generate(ckpt, 4, tmp_path / "b", node_temperature=1.0, **kw)
+    generate(ckpt, 4, tmp_path / "c", node_temperature=0.0, **kw)
+    a, b, c = (_files(tmp_path / k) for k in "abc")
+    assert a == b and a != c  # default: the node noise follows --temperature
+    za, zc = read_manifest(tmp_path / "a"), read_manifest(tmp_path / "c")
+    assert all(za[i]["latent"] == zc[i]["latent"] for i in range(4))  # z is the same
+
+
 def test_latent_depends_on_seed_and_index_only():
     assert (latent(0, 5, 8) == latent(0, 5, 8)).all()
     assert not (latent(0, 5, 8) == latent(0, 6, 8)).all()
