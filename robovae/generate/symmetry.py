@@ -34,7 +34,7 @@ import torch
 
 from robovae.data.features import JOINT, LINK, FeatureSet
 from robovae.data.graph import RobotData, tree_data
-from robovae.generate.bodies import trunk
+from robovae.generate.bodies import subtree, trunk
 from robovae.generate.graph_view import GraphView, as_feature_set
 
 __all__ = ["ATTACH_TOL", "MIRROR_TOL", "is_symmetric", "limbs", "mirror_limbs", "mirrored_pairs"]
@@ -50,14 +50,6 @@ _M = np.array([1.0, -1.0, 1.0])  # reflection across the trunk's xz (sagittal) p
 _FLOOR = {"len": 1e-3, "mass": 1e-3}
 
 
-def _subtree(kids: list[list[int]], i: int) -> list[int]:
-    out, stack = [], [i]
-    while stack:
-        n = stack.pop()
-        out.append(n)
-        stack.extend(reversed(kids[n]))
-    return out
-
 
 def limbs(v: GraphView) -> tuple[int, list[int]]:
     """The trunk link and the roots of its limbs (children of the trunk whose subtree holds a
@@ -65,7 +57,7 @@ def limbs(v: GraphView) -> tuple[int, list[int]]:
     t = trunk(v.types, v.kids) if v.nodes(LINK) else -1
     if t < 0:
         return -1, []
-    out = [c for c in v.kids[t] if any(v.types[n] == JOINT for n in _subtree(v.kids, c))]
+    out = [c for c in v.kids[t] if any(v.types[n] == JOINT for n in subtree(v.kids, c))]
     return t, out
 
 
@@ -74,7 +66,7 @@ def _shape(v: GraphView, i: int) -> tuple:
 
 
 def _profile(v: GraphView, root: int) -> tuple[np.ndarray, np.ndarray]:
-    links = [n for n in _subtree(v.kids, root) if v.types[n] == LINK]
+    links = [n for n in subtree(v.kids, root) if v.types[n] == LINK]
     lengths = np.array([np.linalg.norm(v.get(n, "link.pos")) for n in links])
     masses = np.array([v.get(n, "link.mass")[0] for n in links])
     return lengths, masses
@@ -115,11 +107,11 @@ def is_symmetric(data: RobotData, feature_set: str | FeatureSet = "paper34") -> 
 
 
 def _first_link(v: GraphView, i: int) -> int:
-    return next((n for n in _subtree(v.kids, i) if v.types[n] == LINK), -1)
+    return next((n for n in subtree(v.kids, i) if v.types[n] == LINK), -1)
 
 
 def _n_links(v: GraphView, root: int) -> int:
-    return sum(v.types[n] == LINK for n in _subtree(v.kids, root))
+    return sum(v.types[n] == LINK for n in subtree(v.kids, root))
 
 
 def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
