@@ -51,7 +51,8 @@ def cmd_generate(args: argparse.Namespace) -> int:
     report = generate(args.ckpt, args.n, args.out, seed=args.seed,
                       temperature=args.temperature, validate=args.validate,
                       batch_size=args.batch_size, jobs=args.jobs, scene=args.scene,
-                      overwrite=args.overwrite, floating=args.floating_base)
+                      overwrite=args.overwrite, floating=args.floating_base,
+                      mirror=args.mirror_limbs, node_temperature=args.node_temperature)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -117,6 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "no joint types: otherwise its root would be a hinge to the world)")
     g.add_argument("--overwrite", action="store_true",
                    help="--out holds robots of another checkpoint/seed: delete them first")
+    g.add_argument("--mirror-limbs", action=argparse.BooleanOptionalAction, default=True,
+                   help="near-mirror limb pairs on the trunk become exact mirror images")
+    g.add_argument("--node-temperature", type=float, default=None,
+                   help="std multiplier of the node latents' noise (default: --temperature)")
     g.set_defaults(func=cmd_generate)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "
                        "reconstruction with --ckpt (MUJOCO_GL=egl renders off-screen)")

@@ -25,7 +25,7 @@ from robovae.data.graph import RobotData
 from robovae.generate.graph_view import GraphView, as_feature_set
 
 __all__ = ["FREE_AXIS_COS", "RANGE_ZERO", "free_root_allowed", "joint_types", "link_structure",
-           "moving_links", "trunk", "view_joint_types"]
+           "moving_links", "subtree", "trunk", "view_joint_types"]
 
 #: ``max(|lo|, |hi|)`` below this is an unlimited range (rad or m) where no ``limited`` flag
 #: exists; every real limited joint or control range reaches at least 5e-3.
@@ -58,6 +58,16 @@ def link_structure(parent: list[int], types: list[int]) -> tuple[list[int], list
         else:
             pending[i] = list(above)
     return anc, chain
+
+
+def subtree(kids: list[list[int]], i: int) -> list[int]:
+    """Node ``i`` and its descendants, in pre-order."""
+    out, stack = [], [i]
+    while stack:
+        n = stack.pop()
+        out.append(n)
+        stack.extend(reversed(kids[n]))
+    return out
 
 
 def moving_links(parent: list[int], types: list[int]) -> list[int]:

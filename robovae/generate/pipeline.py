@@ -18,6 +18,7 @@ import multiprocessing
 import os
 import re
 import shutil
+import tempfile
 import time
 from collections import Counter
 from collections.abc import Iterator, Sequence
@@ -34,6 +35,7 @@ from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.rules import floating_base
+from robovae.generate.symmetry import mirror_limbs
 from robovae.generate.validate import validate_robot
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
@@ -61,7 +63,7 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
     two models' robots), unless ``overwrite``: then robovae's own files (``robot_<i>/``,
     manifests, summary) are deleted first — nothing else in the folder is touched.
     """
-    out.mkdir(parents=True, exist_ok=True)
+    writable(out)
     path = out / RUN
     old = json.loads(path.read_text()) if path.is_file() else None
     has_robots = bool(read_manifest(out))
@@ -79,6 +81,20 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
         elif re.fullmatch(r"manifest.*\.jsonl|summary\.json|run\.json", item.name):
             item.unlink()
     _atomic_json(path, run)
+
+
+def writable(out: Path) -> None:
+    """Create the folder ``out`` (and its parents) and check that files can be made in it.
+
+    Raises:
+        RobovaeError: one line naming ``out`` when it cannot be created or written to.
+    """
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()
+    except OSError as e:
+        raise RobovaeError(f"robovae: {out}: cannot write robots there "
+                           f"({e.strerror or type(e).__name__})") from None
 
 
 def _atomic_json(path: Path, obj: dict) -> None:
@@ -192,17 +208,31 @@ def generate(
     scene: bool = True,
     overwrite: bool = False,
     floating: bool = True,
+    mirror: bool = True,
+    node_temperature: float | None = None,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
+    Raises:
+        RobovaeError: ``n`` is not a positive integer, ``out`` cannot be written to, or it
+            holds robots of another run.
+
     ``out`` is tied to the model and settings that started it (``run.json``): resuming with
-    another checkpoint, seed or temperature is refused unless ``overwrite``.
+    another checkpoint, seed or temperature is refused unless ``overwrite``. ``temperature``
+    scales the robot latent ``z``; ``node_temperature`` (default: ``temperature``) the node
+    latents' noise (the detail of each node). ``mirror``: near-mirror limb pairs become exact
+    mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`, reported as
+    ``mirror_limbs``).
     """
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
+                           f"not {n!r}")
     start = time.perf_counter()
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
     out = Path(out)
     claim(out, {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
-                "feature_set": model.feature_set.name, "floating": floating}, overwrite)
+                "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
+                "node_temperature": node_temperature}, overwrite)
     # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
     # a robot must not depend on which robots it was decoded with (byte-identical files)
     model = model.to(torch.float64)
@@ -217,10 +247,12 @@ def generate(
             (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
         for chunk in _chunks(todo, batch_size):
             z, noise = prior_latents(model, seed, chunk, temperature)
+            if node_temperature is not None:
+                noise = prior_latents(model, seed, chunk, node_temperature)[1]
             records = write_records(model, chunk, z, model.decode(z, node_noise=noise), out,
                                     seed=seed,
                                     temperature=temperature, validate=validate, jobs=jobs,
-                                    scene=scene, floating=floating, pool=pool)
+                                    scene=scene, floating=floating, pool=pool, mirror=mirror)
             append_records(manifest, records)
             bar.update(len(chunk))
     bar.close()
@@ -253,13 +285,15 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   graphs: Sequence[RobotData], out: Path, seed: int = 0,
                   temperature: float = 1.0, validate: bool = True, jobs: int = 0,
                   scene: bool = True, floating: bool = True,
-                  pool: Executor | None = None) -> list[dict]:
+                  pool: Executor | None = None, mirror: bool = True) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
     validate them. Returns one manifest record per robot (the caller appends them).
 
     Writing and validation run in ``pool`` (or ``jobs`` worker processes, 0: all cores; 1: in
     this process). With ``floating``, a robot whose root is a single joint gets a floating
-    base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``).
+    base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
+    ``mirror``, near-mirror limb pairs are mirrored (:func:`~robovae.generate.symmetry.
+    mirror_limbs`, listed as ``mirror_limbs``).
     """
     records, items = [], []
     fs = model.feature_set
@@ -269,6 +303,9 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
         if floating:
             g, changed = floating_base(g, fs)
             fixes += ["floating_base"] if changed else []
+        if mirror:
+            g, changed = mirror_limbs(g, fs)
+            fixes += ["mirror_limbs"] if changed else []
         rec = robot_record(g, model.normalizer)
         rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
                    latent=[round(float(v), 6) for v in zi], rules=fixes,

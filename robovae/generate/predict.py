@@ -93,7 +93,8 @@ class RobotWriter(BasePredictionWriter):
         hp = trainer.datamodule.hparams
         run = {"model": model_fingerprint(_Float32Weights(pl_module)),
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
-               "feature_set": pl_module.feature_set.name, "floating": True}
+               "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
+               "node_temperature": None}
         refused = None
         if trainer.is_global_zero:
             try:

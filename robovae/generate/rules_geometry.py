@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from robovae.data.features import GEOM, GEOM_TYPES, JOINT, LINK
-from robovae.generate.bodies import link_structure, trunk
+from robovae.generate.bodies import link_structure, subtree, trunk
 from robovae.generate.graph_view import GraphView, ceil32
 
 __all__ = ["DEFAULT_GEOM_RADIUS", "DEFAULT_LIMB_SEGMENT", "GEOM_SIZE_COMPONENTS",
@@ -84,14 +84,6 @@ def size_positive(v: GraphView) -> None:
             v.set(i, "geom.size", s)
 
 
-def _subtree(kids: list[list[int]], i: int) -> list[int]:
-    out, stack = [], [i]
-    while stack:
-        n = stack.pop()
-        out.append(n)
-        stack.extend(reversed(kids[n]))
-    return out
-
 
 def _largest_size(v: GraphView, i: int) -> float:
     return float(v.get(i, "link.size").max()) if v.has("link.size") else 0.0
@@ -106,7 +98,7 @@ def limb_length(v: GraphView) -> None:
         return
     limbs = []
     for c in v.kids[root_link]:
-        nodes = _subtree(v.kids, c)
+        nodes = subtree(v.kids, c)
         links = [n for n in nodes if v.types[n] == LINK]
         if links and any(v.types[n] == JOINT for n in nodes):
             limbs.append(links)

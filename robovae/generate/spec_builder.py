@@ -19,13 +19,14 @@ rounded as MJCF output writes them (:mod:`robovae.generate.mjcf_numbers`).
   components the primitive uses), friction; ``collides`` → ``contype = 1`` and
   ``conaffinity = 1`` with ``self_collision``, else ``conaffinity = 0`` (the robot collides with
   the floor, not with itself); non-colliding geoms get ``contype = conaffinity = 0``.
-- **no geom nodes at all** (``paper34``, or a ``full`` graph without any): one primitive per
-  body from ``link.size``, written verbatim so that it reads back as the same size: ``(r, 0, 0)``
-  → sphere at the body origin, ``(r, h, 0)`` → capsule, ``(x, y, z)`` → box, the last two
-  centred half-way to the body's first child link and pointing at it (else centred on the
-  centre of mass and pointing at it from the origin, else along z); the root link's geom sits at
-  its origin, unrotated. A body with zero size gets a sphere of radius
-  :data:`~robovae.generate.rules_geometry.DEFAULT_GEOM_RADIUS`.
+- **no geom nodes at all** (``paper34``, or a ``full`` graph without any): geometry that
+  joins, :mod:`robovae.generate.link_geometry`: first a primitive from ``link.size``, written
+  verbatim so that it reads back as the same size (``(r, 0, 0)`` sphere, ``(r, h, 0)`` capsule,
+  ``(x, y, z)`` box, no size: a sphere of radius
+  :data:`~robovae.generate.rules_geometry.DEFAULT_GEOM_RADIUS`), starting at the link's joint
+  anchor and pointing at its first child's anchor; then capsule *bridges* of the link's
+  thickness to its anchor and its children's anchors where the primitive does not reach them
+  (``geom_bridge``). The root link's primitive sits at its origin, unrotated.
 - **actuators**: one ``motor`` per non-free joint. ``actuators="auto"``: in sets with
   ``joint.actuated`` only the flagged joints, with their ``gear`` and ``ctrlrange``
   (``(0, 0)`` = unlimited); elsewhere every non-free joint with :data:`DEFAULT_GEAR` and
@@ -42,7 +43,8 @@ not alone in its body, possible only without the rules: written as a hinge),
 split with intermediate bodies of mass ``max(MIN_MASS, 1e-3 m)`` and inertia
 ``max(MIN_INERTIA, 1e-3 · mean inertia)``),
 ``inertia_rounding`` (the rounded inertia had to be raised for ``a + b ≥ c``,
-:func:`~robovae.generate.mjcf_numbers.rounded_inertia`).
+:func:`~robovae.generate.mjcf_numbers.rounded_inertia`). ``geom_bridge`` is not a repair of the
+tree but is reported alike: some link's primitive (from its size) did not reach a joint anchor.
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ import numpy as np
 from robovae.data.features import GEOM, GEOM_TYPE_IDS, GEOM_TYPES, JOINT, LINK, FeatureSet
 from robovae.data.graph import RobotData
 from robovae.generate.bodies import joint_types, link_structure
+from robovae.generate.link_geometry import LinkFrame, link_geoms, thickness
 from robovae.generate.mjcf_numbers import mjcf_round, mjcf_round_vector, rounded_inertia
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS
 from robovae.generate.rules_mass import MIN_INERTIA, MIN_MASS
@@ -67,7 +70,7 @@ DEFAULT_GEAR = 1.0
 DEFAULT_CTRLRANGE = (-1.0, 1.0)
 #: Names the writer adds to the fired list when it repairs the tree structure.
 WRITER_FIXES = ("empty_robot", "dangling_joint", "joint_shared", "orphan_geom",
-                "free_not_top_level", "dof_chain_split", "inertia_rounding")
+                "free_not_top_level", "dof_chain_split", "inertia_rounding", "geom_bridge")
 
 ActuatorMode = Literal["auto", "all", "none"]
 
@@ -75,17 +78,12 @@ _JNT = {"free": mujoco.mjtJoint.mjJNT_FREE, "ball": mujoco.mjtJoint.mjJNT_BALL,
         "slide": mujoco.mjtJoint.mjJNT_SLIDE, "hinge": mujoco.mjtJoint.mjJNT_HINGE}
 _DOFS = {"free": 6, "ball": 3, "slide": 1, "hinge": 1}
 _TRUE, _FALSE = mujoco.mjtLimited.mjLIMITED_TRUE, mujoco.mjtLimited.mjLIMITED_FALSE
-_SPHERE, _CAPSULE, _BOX = (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CAPSULE,
-                           mujoco.mjtGeom.mjGEOM_BOX)
+_SPHERE = mujoco.mjtGeom.mjGEOM_SPHERE
+_PRIMITIVE = {"sphere": _SPHERE, "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+              "box": mujoco.mjtGeom.mjGEOM_BOX}
 _GEOM_SIZES = tuple(GEOM_SIZE_COMPONENTS[t] for t in GEOM_TYPES)
 _LINK_RGBA = [0.55, 0.6, 0.7, 1.0]
 _GEOM_RGBA = [0.8, 0.55, 0.35, 1.0]
-
-
-def _quat_z_to(u: np.ndarray) -> list[float]:
-    quat = np.zeros(4)
-    mujoco.mju_quatZ2Vec(quat, np.asarray(u, dtype=float))
-    return quat.tolist()
 
 
 class SpecBuilder:
@@ -204,31 +202,36 @@ class SpecBuilder:
             self.fix("dof_chain_split")
         return groups
 
-    def _invented_geom(self, body: mujoco.MjsBody, i: int, first_child: int, root: bool) -> None:
+    def _anchor(self, i: int) -> np.ndarray:
+        """Link ``i``'s anchor in its body frame: its first joint's position, else 0."""
+        chain = self.chain[i]
+        return np.array(mjcf_round_vector(self.get(chain[0], "joint.pos"))) if chain \
+            and self.jtypes[chain[0]] != "free" else np.zeros(3)
+
+    def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
         size = np.maximum(self.get(i, "link.size"), 0.0) if self.has("link.size") \
             else np.zeros(3)
-        k = 0
-        while k < 3 and size[k] > 0:
-            k += 1
-        pos, quat = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]
-        if k >= 2 and not root:
-            target = self.get(first_child, "link.pos") if first_child >= 0 else np.zeros(3)
-            ipos = self.get(i, "link.ipos")
-            if np.linalg.norm(target) > 1e-9:
-                u, c = target / np.linalg.norm(target), 0.5 * target
-            elif np.linalg.norm(ipos) > 1e-9:
-                u, c = ipos / np.linalg.norm(ipos), ipos
-            else:
-                u, c = np.array([0.0, 0.0, 1.0]), np.zeros(3)
-            pos, quat = mjcf_round_vector(c), mjcf_round_vector(_quat_z_to(u))
-        if k == 0:
-            gtype, gsize = _SPHERE, [DEFAULT_GEOM_RADIUS, 0.0, 0.0]
-        else:
-            gtype = (_SPHERE, _CAPSULE, _BOX)[k - 1]
-            gsize = mjcf_round_vector(size)
-        g = body.add_geom(name=f"link{i}_geom", type=gtype, size=gsize, pos=pos, quat=quat,
-                          rgba=_LINK_RGBA)
-        g.contype, g.conaffinity = 1, int(self.self_collision)
+        children = []
+        for c in kids:
+            t = np.zeros(3)
+            mujoco.mju_rotVecQuat(t, self._anchor(c),
+                                  np.array(mjcf_round_vector(self.get(c, "link.quat"))))
+            t += np.array(mjcf_round_vector(self.get(c, "link.pos")))
+            c_size = np.maximum(self.get(c, "link.size"), 0.0) if self.has("link.size") \
+                else np.zeros(3)
+            children.append((t, thickness(c_size)))
+        return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
+                         self.anc[i] < 0)
+
+    def _invented_geoms(self, body: mujoco.MjsBody, i: int, kids: list[int]) -> None:
+        for k, plan in enumerate(link_geoms(self._link_frame(i, kids))):
+            if plan.bridge:
+                self.fix("geom_bridge")
+            g = body.add_geom(name=f"link{i}_geom" if k == 0 else f"link{i}_geom{k}",
+                              type=_PRIMITIVE[plan.type], size=mjcf_round_vector(plan.size),
+                              pos=mjcf_round_vector(plan.pos), quat=mjcf_round_vector(plan.quat),
+                              rgba=_LINK_RGBA)
+            g.contype, g.conaffinity = 1, int(self.self_collision)
 
     def _graph_geom(self, body: mujoco.MjsBody, g: int) -> None:
         k = int(np.argmax(self.get(g, "geom.type")))
@@ -297,12 +300,12 @@ class SpecBuilder:
                     continue
                 self._graph_geom(bodies[self.anc[g]], g)
         else:
-            first_child: dict[int, int] = {}
+            kids: dict[int, list[int]] = {i: [] for i in links}
             for i in links:
                 if self.anc[i] >= 0:
-                    first_child.setdefault(self.anc[i], i)
+                    kids[self.anc[i]].append(i)
             for i in links:
-                self._invented_geom(bodies[i], i, first_child.get(i, -1), self.anc[i] < 0)
+                self._invented_geoms(bodies[i], i, kids[i])
 
         for j, t, jname in acts:
             self._actuate(spec, j, t, jname)

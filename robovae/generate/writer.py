@@ -19,9 +19,12 @@ precision:
   when it copies such a geom's size). A ``full`` graph without any geom node gets invented
   geoms (one per link), which come back as geom nodes.
 - ``paper34``: the topology and every feature except ``link.size`` of bodies that had no geom
-  (size zero: the writer gives them a small sphere, which then has a size). ``subtreemass`` is
-  derived from the masses and recomputed by MuJoCo, so it survives too. Joint types are not
-  features of ``paper34``: slide joints come back as hinges, which have the same features.
+  (size zero: the writer gives them a small sphere, which then has a size). A link's first geom
+  is its ``link.size`` primitive; the bridges that join it to its parent and children come
+  after it (:mod:`robovae.generate.link_geometry`), so the reader takes the size back.
+  ``subtreemass`` is derived from the masses and recomputed by MuJoCo, so it survives too.
+  Joint types are not features of ``paper34``: slide joints come back as hinges, which have
+  the same features.
 """
 
 from __future__ import annotations

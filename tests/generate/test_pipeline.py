@@ -90,6 +90,18 @@ def test_node_noise_depends_on_seed_and_index_only(trained_nodes):
     assert prior_latents(trained_nodes[0].__class__(), 0, [1])[1] is None  # no node latents
 
 
+def test_node_temperature_sets_the_node_noise_only(trained_nodes, tmp_path):
+    _, _, ckpt = trained_nodes
+    kw = dict(seed=2, validate=False, progress=False, jobs=1)
+    generate(ckpt, 4, tmp_path / "a", **kw)
+    generate(ckpt, 4, tmp_path / "b", node_temperature=1.0, **kw)
+    generate(ckpt, 4, tmp_path / "c", node_temperature=0.0, **kw)
+    a, b, c = (_files(tmp_path / k) for k in "abc")
+    assert a == b and a != c  # default: the node noise follows --temperature
+    za, zc = read_manifest(tmp_path / "a"), read_manifest(tmp_path / "c")
+    assert all(za[i]["latent"] == zc[i]["latent"] for i in range(4))  # z is the same
+
+
 def test_latent_depends_on_seed_and_index_only():
     assert (latent(0, 5, 8) == latent(0, 5, 8)).all()
     assert not (latent(0, 5, 8) == latent(0, 6, 8)).all()
@@ -128,6 +140,43 @@ def test_cli_generate_bad_checkpoint_is_one_line(tmp_path, capsys):
     assert main(["generate", "--ckpt", str(bad), "-n", "1", "--out", str(tmp_path / "g")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"robovae: {bad}") and "\n" not in err
+
+
+@pytest.mark.parametrize("n", ["-5", "0"])
+def test_cli_generate_n_must_be_a_positive_integer(trained, n, tmp_path, capsys):
+    _, _, ckpt = trained
+    code = main(["generate", "--ckpt", str(ckpt), "-n", n, "--out", str(tmp_path / "g")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "-n" in err and "\n" not in err
+    assert not (tmp_path / "g").exists()  # nothing written
+
+
+def test_cli_generate_n_not_an_integer_is_a_usage_error(trained, tmp_path):
+    _, _, ckpt = trained
+    with pytest.raises(SystemExit) as e:
+        main(["generate", "--ckpt", str(ckpt), "-n", "2.5", "--out", str(tmp_path / "g")])
+    assert e.value.code == 2 and not (tmp_path / "g").exists()
+
+
+def test_generate_n_must_be_a_positive_integer(trained, tmp_path):
+    _, _, ckpt = trained
+    for n in (-5, 0, 1.0, True):
+        with pytest.raises(RobovaeError, match="positive integer"):
+            generate(ckpt, n, tmp_path / "g", progress=False)
+    assert not (tmp_path / "g").exists()
+
+
+def test_cli_generate_unwritable_out_is_one_line(trained, tmp_path, capsys):
+    """An --out below a file cannot be created (chmod does not stop root: a file as parent)."""
+    _, _, ckpt = trained
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    for out in (blocker / "g", blocker):
+        assert main(["generate", "--ckpt", str(ckpt), "-n", "2", "--out", str(out),
+                     "--jobs", "1"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith(f"robovae: {out}: cannot write") and "\n" not in err
+    assert blocker.read_text() == "not a folder"
 
 
 def test_a_folder_of_another_run_is_refused_unless_overwrite(trained, tmp_path):

@@ -1,0 +1,169 @@
+"""Where the writer puts the geometry of a link without geom nodes, so that a robot is in one
+piece: each link's geometry spans from its joint anchor towards its children's anchors.
+
+All positions are in the link's body frame (m). A link's **anchor** ``a`` is the position of its
+first joint (``joint.pos``), or its origin when it has no joint; a child link ``c`` is attached
+at ``t_c = pos_c + R(quat_c) a_c`` (its anchor seen from the parent). The **thickness** ``r`` of
+a link comes from ``link.size`` (``(r)`` sphere, ``(r, h)`` capsule: ``r``; ``(x, y, z)`` box:
+the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT_GEOM_RADIUS`).
+
+1. The **primitive**: the link's first geom, written from ``link.size`` verbatim (so that the
+   reader gives the same ``link.size`` back): sphere ``(r)``, capsule ``(r, h)``, box
+   ``(x, y, z)``.
+
+   - root link (no link above it): at its origin, unrotated;
+   - capsule / box: its axis (capsule axis, box z) points from ``a`` at the first child's
+     anchor ``t`` (else at the centre of mass ``ipos``, else along +z) and it **starts at the
+     anchor**: its end touches ``a``, centre ``a + (h + r) u`` (box: ``a + z u``);
+   - sphere: at the anchor, or, for a leaf link (no child link), at its centre of mass.
+
+2. **Bridges**, where the primitive does not reach a point it must reach (farther than
+   :data:`COVER_TOL` ``· r`` from its surface): the link's anchor (for a non-root link) and the
+   anchor of every child link. A bridge is a capsule from the link's *core* point (the anchor,
+   the root's origin, or, to reach the link's own anchor, the primitive's centre) to that
+   point, of radius ``ρ = min(r, r_child)`` (``r`` for the own anchor), whose caps end at the
+   two points (segment inset by ``ρ`` at both ends, so that it does not reach into the
+   grandparent or grandchild); a bridge shorter than ``2ρ`` is a sphere touching both points
+   (radius half the length, at least :data:`MIN_BRIDGE` ``· ρ``). Bridges are reported
+   (``geom_bridge``) since a real robot's own geoms need none only when its features place them.
+
+Every child's geometry then contains its anchor ``t_c`` (its primitive starts there, or a bridge
+reaches it), and so does its parent's: the two touch at ``t_c``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS
+
+__all__ = ["COVER_TOL", "MIN_BRIDGE", "GeomPlan", "LinkFrame", "link_geoms", "thickness"]
+
+#: A point farther than this times the thickness from the primitive's surface needs a bridge.
+COVER_TOL = 0.25
+#: A bridge shorter than this times its radius is a sphere.
+MIN_BRIDGE = 0.05
+
+
+@dataclass
+class GeomPlan:
+    """One geom in its body frame: MuJoCo type name, ``size`` (3), ``pos`` (3), ``quat`` (4),
+    and whether it is a bridge."""
+
+    type: str
+    size: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray
+    bridge: bool = False
+
+
+@dataclass
+class LinkFrame:
+    """What the layout reads of one link (body frame, m).
+
+    Attributes:
+        size: ``link.size`` (zeros when absent), already repaired by the rules.
+        anchor: its anchor ``a``.
+        ipos: its centre of mass.
+        children: ``[(t_c, r_c)]``: every child link's anchor and thickness.
+        root: no link above it.
+    """
+
+    size: np.ndarray
+    anchor: np.ndarray
+    ipos: np.ndarray
+    children: list[tuple[np.ndarray, float]]
+    root: bool
+
+
+def _n_size(size: np.ndarray) -> int:
+    k = 0
+    while k < 3 and size[k] > 0:
+        k += 1
+    return k
+
+
+def thickness(size: np.ndarray) -> float:
+    """The radius a link's bridges take from its ``link.size`` (module docstring)."""
+    k = _n_size(size)
+    if k == 0:
+        return DEFAULT_GEOM_RADIUS
+    return float(size[0]) if k < 3 else float(np.min(size))
+
+
+def _quat_z_to(u: np.ndarray) -> np.ndarray:
+    quat = np.zeros(4)
+    mujoco.mju_quatZ2Vec(quat, np.asarray(u, dtype=float))
+    return quat
+
+
+def _unit(v: np.ndarray) -> np.ndarray | None:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 1e-9 else None
+
+
+def _primitive(f: LinkFrame) -> GeomPlan:
+    k = _n_size(f.size)
+    ident = np.array([1.0, 0.0, 0.0, 0.0])
+    if k == 0:
+        size = np.array([DEFAULT_GEOM_RADIUS, 0.0, 0.0])
+    else:
+        size = np.where(np.arange(3) < k, f.size, 0.0)
+    gtype = ("sphere", "sphere", "capsule", "box")[k]
+    if f.root:
+        return GeomPlan(gtype, size, np.zeros(3), ident)
+    if gtype == "sphere":
+        return GeomPlan(gtype, size, f.anchor if f.children else f.ipos.copy(), ident)
+    u = None
+    for t, _ in f.children:
+        u = _unit(t - f.anchor)
+        if u is not None:
+            break
+    if u is None:
+        u = _unit(f.ipos - f.anchor)
+    if u is None:
+        u = np.array([0.0, 0.0, 1.0])
+    reach = float(size[1] + size[0] if gtype == "capsule" else size[2])
+    return GeomPlan(gtype, size, f.anchor + reach * u, _quat_z_to(u))
+
+
+def _gap(g: GeomPlan, p: np.ndarray) -> float:
+    """Distance (m) from point ``p`` to the surface of ``g`` (≤ 0 inside)."""
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, g.quat)
+    local = mat.reshape(3, 3).T @ (p - g.pos)
+    if g.type == "sphere":
+        return float(np.linalg.norm(local) - g.size[0])
+    if g.type == "capsule":
+        local[2] -= np.clip(local[2], -g.size[1], g.size[1])
+        return float(np.linalg.norm(local) - g.size[0])
+    out = np.abs(local) - g.size
+    return float(np.linalg.norm(np.maximum(out, 0.0)) + min(float(out.max()), 0.0))
+
+
+def _bridge(a: np.ndarray, b: np.ndarray, radius: float) -> GeomPlan:
+    d = b - a
+    length = float(np.linalg.norm(d))
+    if length <= 2.0 * radius:  # a sphere touching both ends
+        r = max(0.5 * length, MIN_BRIDGE * radius)
+        return GeomPlan("sphere", np.array([r, 0.0, 0.0]), 0.5 * (a + b),
+                        np.array([1.0, 0, 0, 0]), True)
+    return GeomPlan("capsule", np.array([radius, 0.5 * length - radius, 0.0]), 0.5 * (a + b),
+                    _quat_z_to(d / length), True)
+
+
+def link_geoms(f: LinkFrame) -> list[GeomPlan]:
+    """The primitive of a link, then its bridges (module docstring)."""
+    prim = _primitive(f)
+    r = thickness(f.size)
+    out = [prim]
+    core = np.zeros(3) if f.root else f.anchor
+    if not f.root and _gap(prim, f.anchor) > COVER_TOL * r:
+        out.append(_bridge(prim.pos, f.anchor, r))
+    for t, r_child in f.children:
+        if _gap(prim, t) > COVER_TOL * r:
+            out.append(_bridge(core, t, min(r, r_child)))
+    return out

@@ -1,0 +1,208 @@
+"""Paired limbs: measure the mirror symmetry of a robot graph, and mirror a decoded side.
+
+The **limbs** of a robot are the subtrees hanging off its trunk link
+(:func:`~robovae.generate.bodies.trunk`) that hold at least one joint. A limb's *attachment*
+``p`` is the ``link.pos`` of its first link (trunk frame, m); its *lengths* and *masses* are
+``|link.pos|`` and ``link.mass`` of its links in pre-order.
+
+**Mirrored pair** (:func:`mirrored_pairs`): two limbs of the same topology (node types and tree,
+in order) whose lengths and masses agree within :data:`MIRROR_TOL` (10 %: ``|a - b| ≤
+0.1 max(|a|, |b|)``, plus 1 mm / 1 g for values near zero). A robot is **symmetric**
+(:func:`is_symmetric`) when its limbs form at least one mirrored pair and at most one limb
+(a head, a tail, an abdomen carrying the legs) is left unpaired.
+
+**Mirroring** (:func:`mirror_limbs`, a generation choice reported as ``mirror_limbs``): among the
+trunk's limbs, two limbs are *meant* as a pair (near-mirror) when their attachments are mirror
+images across the trunk's sagittal plane (MuJoCo's convention: x forward, y left, so
+``M = diag(1, -1, 1)``): ``|M p_A - p_B| ≤`` :data:`ATTACH_TOL` ``· max(|p_A|, |p_B|)``,
+neither lies on the plane (``|p_y| >`` :data:`ATTACH_TOL` ``· |p|``), and their link counts
+differ by at most ``max(1,`` :data:`LINK_COUNT_TOL` ``· the larger)``. Front and back legs are
+never paired (they differ in real robots). Pairs are taken greedily, closest first, and each
+pair's second limb (in pre-order) is replaced by the mirror image of the first: topology,
+lengths, masses and every other feature. The mirror image of a subtree conjugates every local
+frame by ``M``: positions ``p → M p`` (``link.pos``, ``link.ipos``, ``joint.pos``),
+orientations ``(w, v) → (w, -M v)`` (``link.quat``, ``link.iquat``), hinge/slide axes
+``a → -M a`` (so that a joint range keeps its sign), everything else (masses, inertias, sizes,
+ranges, dynamics) unchanged. Subtree masses above the limb are then made consistent by the
+writer's rule ``subtreemass_consistent``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from robovae.data.features import JOINT, LINK, FeatureSet
+from robovae.data.graph import RobotData, tree_data
+from robovae.generate.bodies import subtree, trunk
+from robovae.generate.graph_view import GraphView, as_feature_set
+
+__all__ = ["ATTACH_TOL", "MIRROR_TOL", "is_symmetric", "limbs", "mirror_limbs", "mirrored_pairs"]
+
+#: Relative tolerance on lengths and masses of a mirrored pair.
+MIRROR_TOL = 0.10
+#: Relative tolerance on mirrored attachment points for :func:`mirror_limbs`.
+ATTACH_TOL = 0.25
+#: Largest difference in link count (fraction of the larger limb, at least 1) of a near-mirror
+#: pair for :func:`mirror_limbs`.
+LINK_COUNT_TOL = 0.25
+_M = np.array([1.0, -1.0, 1.0])  # reflection across the trunk's xz (sagittal) plane
+_FLOOR = {"len": 1e-3, "mass": 1e-3}
+
+
+
+def limbs(v: GraphView) -> tuple[int, list[int]]:
+    """The trunk link and the roots of its limbs (children of the trunk whose subtree holds a
+    joint), in order; ``(-1, [])`` when there is no trunk."""
+    t = trunk(v.types, v.kids) if v.nodes(LINK) else -1
+    if t < 0:
+        return -1, []
+    out = [c for c in v.kids[t] if any(v.types[n] == JOINT for n in subtree(v.kids, c))]
+    return t, out
+
+
+def _shape(v: GraphView, i: int) -> tuple:
+    return (v.types[i], tuple(_shape(v, c) for c in v.kids[i]))
+
+
+def _profile(v: GraphView, root: int) -> tuple[np.ndarray, np.ndarray]:
+    links = [n for n in subtree(v.kids, root) if v.types[n] == LINK]
+    lengths = np.array([np.linalg.norm(v.get(n, "link.pos")) for n in links])
+    masses = np.array([v.get(n, "link.mass")[0] for n in links])
+    return lengths, masses
+
+
+def _close(a: np.ndarray, b: np.ndarray, floor: float) -> bool:
+    return bool(np.all(np.abs(a - b) <= MIRROR_TOL * np.maximum(np.abs(a), np.abs(b)) + floor))
+
+
+def _is_pair(v: GraphView, a: int, b: int) -> bool:
+    if _shape(v, a) != _shape(v, b):
+        return False
+    (la, ma), (lb, mb) = _profile(v, a), _profile(v, b)
+    return _close(la, lb, _FLOOR["len"]) and _close(ma, mb, _FLOOR["mass"])
+
+
+def mirrored_pairs(data: RobotData, feature_set: str | FeatureSet = "paper34"
+                   ) -> tuple[int, int]:
+    """``(pairs, limbs)``: how many disjoint mirrored pairs the trunk's limbs form (greedy, in
+    order) and how many limbs it has (module docstring)."""
+    v = GraphView(data, as_feature_set(feature_set))
+    _, roots = limbs(v)
+    free = list(roots)
+    pairs = 0
+    while free:
+        a = free.pop(0)
+        b = next((b for b in free if _is_pair(v, a, b)), None)
+        if b is not None:
+            free.remove(b)
+            pairs += 1
+    return pairs, len(roots)
+
+
+def is_symmetric(data: RobotData, feature_set: str | FeatureSet = "paper34") -> bool:
+    """At least one mirrored pair and at most one unpaired limb (module docstring)."""
+    pairs, n = mirrored_pairs(data, feature_set)
+    return pairs >= 1 and n - 2 * pairs <= 1
+
+
+def _first_link(v: GraphView, i: int) -> int:
+    return next((n for n in subtree(v.kids, i) if v.types[n] == LINK), -1)
+
+
+def _n_links(v: GraphView, root: int) -> int:
+    return sum(v.types[n] == LINK for n in subtree(v.kids, root))
+
+
+def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
+    """Near-mirror pairs across the trunk's sagittal plane, closest first (module
+    docstring)."""
+    pos = {}
+    for r in roots:
+        f = _first_link(v, r)
+        if f >= 0:
+            pos[r] = np.asarray(v.get(f, "link.pos"), dtype=float)
+    cands = []
+    for ia, a in enumerate(roots):
+        for b in roots[ia + 1:]:
+            if a not in pos or b not in pos:
+                continue
+            pa, pb = pos[a], pos[b]
+            scale = max(float(np.linalg.norm(pa)), float(np.linalg.norm(pb)), 1e-9)
+            if min(abs(pa[1]), abs(pb[1])) <= ATTACH_TOL * scale:
+                continue  # on the plane: its own mirror
+            na, nb = _n_links(v, a), _n_links(v, b)
+            if abs(na - nb) > max(1, LINK_COUNT_TOL * max(na, nb)):
+                continue  # not meant as a pair
+            d = float(np.linalg.norm(_M * pa - pb))
+            if d <= ATTACH_TOL * scale:
+                cands.append((d, a, b))
+    used: set[int] = set()
+    pairs = []
+    for _, a, b in sorted(cands):
+        if a not in used and b not in used:
+            used |= {a, b}
+            pairs.append((a, b))
+    return pairs
+
+
+def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
+    out = row.copy()
+    m = _M
+
+    def put(key: str, fn) -> None:
+        if v.has(key):
+            sl = v.fs.slice(key)
+            out[sl] = fn(row[sl])
+
+    if node_type == LINK:
+        for key in ("link.pos", "link.ipos"):
+            put(key, lambda p: m * p)
+        for key in ("link.quat", "link.iquat"):
+            put(key, lambda q: np.concatenate([q[:1], -m * q[1:]]))
+    elif node_type == JOINT:
+        put("joint.pos", lambda p: m * p)
+        put("joint.axis", lambda a: -m * a)
+    return out
+
+
+def mirror_limbs(data: RobotData, feature_set: str | FeatureSet = "paper34"
+                 ) -> tuple[RobotData, bool]:
+    """Replace the second limb of every near-mirror pair by the mirror image of the first
+    (module docstring).
+
+    Returns:
+        ``(data, changed)``: the new graph (``data`` itself when no pair was found) and whether
+        a feature or the tree changed.
+    """
+    fs = as_feature_set(feature_set)
+    v = GraphView(data, fs)
+    _, roots = limbs(v)
+    plan = _planned_pairs(v, roots)
+    if not plan:
+        return data, False
+    replace = {b: a for a, b in plan}
+    parent: list[int] = []
+    types: list[int] = []
+    rows: list[np.ndarray] = []
+
+    def emit(i: int, new_parent: int, mirrored: bool) -> None:
+        me = len(types)
+        parent.append(new_parent)
+        types.append(v.types[i])
+        rows.append(_mirror_row(v, v.x[i], v.types[i]) if mirrored else v.x[i])
+        for c in v.kids[i]:
+            if not mirrored and c in replace:
+                emit(replace[c], me, True)
+            else:
+                emit(c, me, mirrored)
+
+    emit(0, -1, False)
+    x = torch.from_numpy(np.stack(rows)).to(torch.float32)
+    x = torch.where(torch.from_numpy(fs.mask(torch.tensor(types)).numpy()), x,
+                    torch.zeros((), dtype=torch.float32))
+    changed = parent != v.parent or types != v.types or not torch.equal(x, data.x)
+    if not changed:
+        return data, False
+    return tree_data(parent, types, x, fs, name=getattr(data, "name", ""),
+                     source=getattr(data, "source", "")), True

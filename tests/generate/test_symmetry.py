@@ -1,0 +1,98 @@
+"""Paired limbs: the symmetry measure and the mirror of a decoded side (issue 21 item 2)."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+from robovae.data.features import LINK, get_feature_set
+from robovae.data.mjcf import load_robot, model_to_graph
+from robovae.data.procedural import procedural_spec
+from robovae.data.zoo import zoo_files
+from robovae.generate.graph_view import GraphView
+from robovae.generate.symmetry import is_symmetric, limbs, mirror_limbs, mirrored_pairs
+from robovae.generate.writer import graph_to_spec
+
+FS = get_feature_set("paper34")
+ZOO = dict(zoo_files()[0])
+
+
+@cache
+def _hexapod():
+    """Procedural hexapod: six legs at (x, ±y, 0), drawn independently (not mirrored)."""
+    return model_to_graph(procedural_spec(1).compile(), "paper34", name="hexapod")
+
+
+def _subtree_links(v: GraphView, root: int) -> list[int]:
+    out, stack = [], [root]
+    while stack:
+        n = stack.pop()
+        out.append(n)
+        stack.extend(reversed(v.kids[n]))
+    return [n for n in out if v.types[n] == LINK]
+
+
+@pytest.mark.parametrize(("name", "symmetric"), [("gym_ant", True), ("gym_humanoid", True),
+                                                 ("dmc_quadruped", True), ("gym_hopper", False),
+                                                 ("gym_half_cheetah", False)])
+def test_symmetry_of_zoo_robots(name, symmetric):
+    g = model_to_graph(load_robot(ZOO[name]).model, "paper34")
+    assert is_symmetric(g) is symmetric
+
+
+def test_mirror_makes_left_and_right_legs_mirror_images():
+    g = _hexapod()
+    assert mirrored_pairs(g) == (0, 6)
+    out, changed = mirror_limbs(g)
+    assert changed and mirrored_pairs(out) == (3, 6) and is_symmetric(out)
+    v0, v1 = GraphView(g, FS), GraphView(out, FS)
+    for k in range(0, 6, 2):  # the first (left) legs are kept as decoded
+        a, b = _subtree_links(v0, limbs(v0)[1][k]), _subtree_links(v1, limbs(v1)[1][k])
+        assert torch.equal(g.x[a], out.x[b])
+    # in the written robot, each right body sits at the mirror image (y → -y) of its left one,
+    # also when the joints move by the same angle
+    model = graph_to_spec(out, "paper34", clearance=None)[0].compile()
+    v = GraphView(out, FS)
+    links = [i for i, t in enumerate(v.types) if t == LINK]
+    body = {i: b for b, i in enumerate(links, start=1)}
+    _, roots = limbs(v)
+    data = mujoco.MjData(model)
+    data.qpos[7:] = np.linspace(-0.3, 0.4, model.nq - 7)
+    for k in range(0, 6, 2):
+        left, right = _subtree_links(v, roots[k]), _subtree_links(v, roots[k + 1])
+        for a, b in zip(left, right):  # the same hinge angles on both sides
+            ja, jb = model.body_jntadr[body[a]], model.body_jntadr[body[b]]
+            for j in range(model.body_jntnum[body[a]]):
+                data.qpos[model.jnt_qposadr[jb + j]] = data.qpos[model.jnt_qposadr[ja + j]]
+    mujoco.mj_forward(model, data)
+    for k in range(0, 6, 2):
+        for a, b in zip(_subtree_links(v, roots[k]), _subtree_links(v, roots[k + 1])):
+            pa, pb = data.xpos[body[a]], data.xpos[body[b]]
+            assert np.allclose(pa * [1, -1, 1], pb, atol=1e-5), (a, b)
+
+
+def test_mirror_copies_the_topology_of_the_first_side():
+    g = _hexapod().clone()
+    v = GraphView(g, FS)
+    _, roots = limbs(v)
+    # cut the last link off the second (right) leg: a decoded pair of unequal topology
+    right = _subtree_links(v, roots[1])
+    keep = [i for i in range(g.num_nodes) if i != right[-1]]
+    index = {old: new for new, old in enumerate(keep)}
+    parent = [index[p] if p >= 0 else -1 for p in g.parent[keep].tolist()]
+    from robovae.data.graph import tree_data
+
+    cut = tree_data(parent, g.node_type[keep], g.x[keep], FS)
+    out, changed = mirror_limbs(cut)
+    assert changed and out.num_nodes == g.num_nodes and mirrored_pairs(out)[0] == 3
+
+
+def test_front_and_back_legs_are_not_mirrored():
+    for name in ("gym_half_cheetah", "gym_hopper", "gym_walker2d"):
+        g = model_to_graph(load_robot(ZOO[name]).model, "paper34")
+        out, changed = mirror_limbs(g)
+        assert out is g and not changed, name
