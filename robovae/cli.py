@@ -3,6 +3,7 @@
 ``robovae data``       build a dataset and print one row per robot;
 ``robovae generate``   sample robots from a checkpoint, write MJCF, validate, report;
 ``robovae interpolate`` robots on the latent line between two robots, with a contact sheet;
+``robovae optimize``   CMA-ES over the latent space for walk / stand / reach, with baselines;
 ``robovae render``     PNG contact sheets and original-vs-reconstruction pictures;
 ``robovae analyze``    statistics of the design space: descriptors, KL/MMD/coverage, latent
                        entropy, MuJoCo state entropy and standing test;
@@ -79,6 +80,19 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
     print(format_table(rows, ["step", "t", "valid", "reason", "robot"]))
     print(f"path: {Path(args.out) / 'path.json'}" + (f", sheet: {res['sheet']}"
                                                      if res["sheet"] else ""))
+    return 0
+
+
+def cmd_optimize(args: argparse.Namespace) -> int:
+    """CMA-ES over the latent space for a task, with random-prior and procedural baselines."""
+    from robovae.design.optimize import METHODS, optimize
+
+    res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
+                   top=args.top)
+    rows = [{"method": m, "evaluations": res[m]["evaluations"], "best": f"{res[m]['best']:.4f}",
+             "best index": res[m]["best_index"]} for m in METHODS]
+    print(format_table(rows, ["method", "evaluations", "best", "best index"]))
+    print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
     return 0
 
 
@@ -159,6 +173,17 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--sheet", action=argparse.BooleanOptionalAction, default=True,
                    help="render the contact sheet sheet.png (MUJOCO_GL=egl off-screen)")
     i.set_defaults(func=cmd_interpolate)
+    o = sub.add_parser("optimize", help="CMA-ES over the latent space for a task (walk, stand, "
+                       "reach), against random prior samples and procedural robots")
+    o.add_argument("--ckpt", required=True, help="Lightning checkpoint (e.g. last.ckpt)")
+    o.add_argument("--task", required=True, help="walk | stand | reach")
+    o.add_argument("--budget", type=int, required=True,
+                   help="robot evaluations per method (CMA-ES, prior, procedural)")
+    o.add_argument("--out", required=True, help="output folder (re-running continues its log)")
+    o.add_argument("--seed", type=int, default=0)
+    o.add_argument("--top", type=int, default=3, help="best robots written per method")
+    o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
+    o.set_defaults(func=cmd_optimize)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "
                        "reconstruction with --ckpt (MUJOCO_GL=egl renders off-screen)")
     r.add_argument("paths", nargs="+", help="robot files or folders (robot_*/robot.xml)")
