@@ -35,7 +35,6 @@ Bad input is refused with one line before anything is written: an unknown task, 
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import tempfile
