@@ -2,6 +2,8 @@
 
 ``robovae data``       build a dataset and print one row per robot;
 ``robovae generate``   sample robots from a checkpoint, write MJCF, validate, report;
+``robovae interpolate`` robots on the latent line between two robots, with a contact sheet;
+``robovae optimize``   CMA-ES over the latent space for walk / stand / reach, with baselines;
 ``robovae render``     PNG contact sheets and original-vs-reconstruction pictures;
 ``robovae analyze``    statistics of the design space: descriptors, KL/MMD/coverage, latent
                        entropy, MuJoCo state entropy and standing test;
@@ -46,6 +48,16 @@ def cmd_data(args: argparse.Namespace) -> int:
 
 def cmd_generate(args: argparse.Namespace) -> int:
     """Sample robots from a checkpoint, write MJCF, validate, print the sample report."""
+    if args.like:
+        from robovae.design.variations import generate_like
+
+        report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
+                               seed=args.seed, validate=args.validate, jobs=args.jobs,
+                               scene=args.scene, overwrite=args.overwrite,
+                               floating=args.floating_base)
+        print(report.format())
+        print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
+        return 0
     from robovae.generate.pipeline import generate
 
     report = generate(args.ckpt, args.n, args.out, seed=args.seed,
@@ -55,6 +67,33 @@ def cmd_generate(args: argparse.Namespace) -> int:
                       mirror=args.mirror_limbs, node_temperature=args.node_temperature)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
+    return 0
+
+
+def cmd_interpolate(args: argparse.Namespace) -> int:
+    """Decode the latent path between two robots, validate each step, draw a contact sheet."""
+    from robovae.design.variations import interpolate_files
+
+    res = interpolate_files(args.ckpt, args.a, args.b, args.steps, args.out,
+                            validate=args.validate, sheet=args.sheet)
+    rows = [{"step": k, "t": f"{s['t']:.3f}", "valid": s["valid"], "reason": s["reason"],
+             "robot": s["path"]} for k, s in enumerate(res["steps"])]
+    print(format_table(rows, ["step", "t", "valid", "reason", "robot"]))
+    print(f"path: {Path(args.out) / 'path.json'}" + (f", sheet: {res['sheet']}"
+                                                     if res["sheet"] else ""))
+    return 0
+
+
+def cmd_optimize(args: argparse.Namespace) -> int:
+    """CMA-ES over the latent space for a task, with random-prior and procedural baselines."""
+    from robovae.design.optimize import METHODS, optimize
+
+    res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
+                   top=args.top)
+    rows = [{"method": m, "evaluations": res[m]["evaluations"], "best": f"{res[m]['best']:.4f}",
+             "best index": res[m]["best_index"]} for m in METHODS]
+    print(format_table(rows, ["method", "evaluations", "best", "best index"]))
+    print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
     return 0
 
 
@@ -122,7 +161,34 @@ def build_parser() -> argparse.ArgumentParser:
                    help="near-mirror limb pairs on the trunk become exact mirror images")
     g.add_argument("--node-temperature", type=float, default=None,
                    help="std multiplier of the node latents' noise (default: --temperature)")
+    g.add_argument("--like", help="a robot file: sample variations of it (around its encoded "
+                   "latent, within --radius) instead of prior samples")
+    g.add_argument("--radius", type=float, default=0.5,
+                   help="with --like: latent radius of the variations (0: reconstructions)")
     g.set_defaults(func=cmd_generate)
+    i = sub.add_parser("interpolate", help="robots on the latent line between two robots, "
+                       "validated, with a contact sheet")
+    i.add_argument("a", help="first robot file (t = 0)")
+    i.add_argument("b", help="second robot file (t = 1)")
+    i.add_argument("--ckpt", required=True, help="Lightning checkpoint (e.g. last.ckpt)")
+    i.add_argument("--steps", type=int, default=8, help="robots on the path, ends included")
+    i.add_argument("--out", required=True, help="output folder (must not exist or be empty)")
+    i.add_argument("--validate", action=argparse.BooleanOptionalAction, default=True,
+                   help="simulate each step 1 s in MuJoCo and classify it")
+    i.add_argument("--sheet", action=argparse.BooleanOptionalAction, default=True,
+                   help="render the contact sheet sheet.png (MUJOCO_GL=egl off-screen)")
+    i.set_defaults(func=cmd_interpolate)
+    o = sub.add_parser("optimize", help="CMA-ES over the latent space for a task (walk, stand, "
+                       "reach), against random prior samples and procedural robots")
+    o.add_argument("--ckpt", required=True, help="Lightning checkpoint (e.g. last.ckpt)")
+    o.add_argument("--task", required=True, help="walk | stand | reach")
+    o.add_argument("--budget", type=int, required=True,
+                   help="robot evaluations per method (CMA-ES, prior, procedural)")
+    o.add_argument("--out", required=True, help="output folder (re-running continues its log)")
+    o.add_argument("--seed", type=int, default=0)
+    o.add_argument("--top", type=int, default=3, help="best robots written per method")
+    o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
+    o.set_defaults(func=cmd_optimize)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "
                        "reconstruction with --ckpt (MUJOCO_GL=egl renders off-screen)")
     r.add_argument("paths", nargs="+", help="robot files or folders (robot_*/robot.xml)")

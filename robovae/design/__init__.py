@@ -1,0 +1,1 @@
+"""Design in the latent space: variations, paths and optimisation of robots."""

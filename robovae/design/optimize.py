@@ -1,0 +1,288 @@
+"""``robovae optimize``: CMA-ES over the latent space for a task, against two baselines.
+
+For a checkpoint with latent dimension ``d``, task ``T`` (:data:`robovae.design.score.TASKS`)
+and a budget of ``N`` evaluations per method, three methods run side by side in one run:
+
+- ``cma``: CMA-ES (the ``cmaes`` package) over ``z in R^d``, started at the prior mean
+  ``m_0 = 0`` with step size ``sigma_0 = 1`` (the prior's std), default population
+  ``4 + floor(3 ln d)``, seeded with ``seed``; it minimises ``-score``;
+- ``prior``: random prior samples ``z_i ~ N(0, I)`` (:func:`robovae.generate.pipeline.latent`,
+  generator seeded by ``(seed, i)``);
+- ``procedural``: random robots of :func:`robovae.data.procedural.procedural_spec` (seed drawn
+  from ``(seed, i, 2)``, any kind).
+
+Latent candidates are decoded from ``z`` alone (greedy; with node latents, every node's latent
+at its conditional prior mean), written like ``robovae generate`` writes a robot (for walk and
+stand a root joint becomes a floating base; for reach the base stays fixed), and scored by
+:func:`robovae.design.score.score_robot` with score seed 0 (every robot gets the same gait
+search). Evaluation runs in ``jobs`` worker processes (``spawn``), one round at a time: a CMA
+generation and as many prior and procedural robots, with a progress bar.
+
+Output folder ``out``:
+
+- ``log.json``: the settings and every evaluation per method (index, score, details, ``z`` or
+  procedural seed), rewritten atomically after each round. Re-running with the same ``out``
+  continues from it: CMA-ES is replayed from the logged scores (its candidates are
+  deterministic for the seed; a mismatch is refused), the baselines skip logged indices. A log
+  of other settings (model, task, seed) is refused; a larger ``--budget`` extends the run.
+- ``best/<method>/rank_<k>/robot.xml`` (+ ``scene.xml``): the ``top`` best robots per method,
+  rewritten at the end; ``convergence.png``: best score so far against evaluations.
+
+Bad input is refused with one line before anything is written: an unknown task, a budget
+``<= 0``, a checkpoint that is not one, an ``out`` that is a file or holds a log of another run.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from robovae.design.score import TASKS, score_robot
+from robovae.errors import RobovaeError
+from robovae.generate.pipeline import latent, model_fingerprint, worker_pool
+from robovae.model.checkpoint import load_model
+from robovae.model.vae import RoboVAE
+
+__all__ = ["METHODS", "best_so_far", "optimize", "procedural_seed"]
+
+METHODS = ("cma", "prior", "procedural")
+LOG = "log.json"
+
+
+def procedural_seed(seed: int, index: int) -> int:
+    """Seed of procedural baseline robot ``index`` of a run with ``seed``."""
+    return int(np.random.SeedSequence([seed, index, 2]).generate_state(1)[0])
+
+
+def best_so_far(scores: Sequence[float]) -> np.ndarray:
+    """Running maximum of ``scores`` (the convergence curve)."""
+    return np.maximum.accumulate(np.asarray(scores, dtype=float)) if len(scores) else \
+        np.zeros(0)
+
+
+def _evaluate(item: tuple) -> dict:
+    """Write one candidate into a scratch folder, score it, delete the folder (worker)."""
+    method, payload, folder, fs_name, task, floating = item
+    from robovae.generate.writer import write_robot
+
+    folder = Path(folder)
+    try:
+        if method == "procedural":
+            from robovae.data.procedural import procedural_spec
+
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / "robot.xml").write_text(procedural_spec(payload).to_xml())
+        else:
+            from robovae.generate.rules import floating_base
+
+            graph = floating_base(payload, fs_name)[0] if floating else payload
+            write_robot(graph, folder, fs_name, name=folder.name, scene=False)
+        res = score_robot(folder / "robot.xml", task, seed=0)
+        if res.get("error"):  # the scratch file is gone: name the candidate, not the file
+            res["error"] = res["error"].replace(f"{folder / 'robot.xml'}: ", "")
+        return res
+    except Exception as e:  # an unwritable candidate scores 0
+        return {"score": 0.0, "error": " ".join(f"writer: {type(e).__name__}: {e}".split())}
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _atomic_json(path: Path, obj: dict) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    with os.fdopen(fd, "w") as f:
+        json.dump(obj, f, indent=1)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+class _Run:
+    """State of one optimisation folder: settings, log, model, CMA-ES."""
+
+    def __init__(self, model: RoboVAE, task: str, budget: int, out: Path, seed: int,
+                 jobs: int, top: int) -> None:
+        from cmaes import CMA
+
+        self.model, self.task, self.budget, self.out = model, task, budget, out
+        self.seed, self.jobs, self.top = seed, jobs, top
+        self.dim = int(model.hparams.latent_dim)
+        self.floating = task != "reach"
+        self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
+                         "latent_dim": self.dim, "score_seed": 0}
+        self.log = {"settings": self.settings, "budget": budget,
+                    "evaluations": {m: [] for m in METHODS}}
+        self.cma = CMA(mean=np.zeros(self.dim), sigma=1.0, seed=seed)
+        self.pending: list[dict] = []  # evaluated part of the CMA-ES generation being asked
+
+    def load(self) -> None:
+        """Continue from ``log.json`` (module docstring); refuses another run's log."""
+        path = self.out / LOG
+        if not path.is_file():
+            return
+        old = json.loads(path.read_text())
+        if old.get("settings") != self.settings:
+            diff = ", ".join(k for k in self.settings
+                             if old.get("settings", {}).get(k) != self.settings[k])
+            raise RobovaeError(f"robovae: {path}: log of another run ({diff} differ); use "
+                               "another --out")
+        self.log["evaluations"] = old["evaluations"]
+        done = self.log["evaluations"]["cma"]
+        pop = self.cma.population_size
+        for g in range(0, len(done) - len(done) % pop, pop):
+            zs = [self.cma.ask() for _ in range(pop)]
+            self._check_replay(zs, done[g:g + pop])
+            self.cma.tell([(z, -r["score"]) for z, r in zip(zs, done[g:g + pop])])
+        self.pending = done[len(done) - len(done) % pop:]  # a generation cut by the budget
+
+    def _check_replay(self, zs: Sequence[np.ndarray], recs: Sequence[dict]) -> None:
+        for z, rec in zip(zs, recs):
+            if not np.allclose(z, rec["z"], atol=1e-6):
+                raise RobovaeError(f"robovae: {self.out / LOG}: CMA-ES replay differs from the "
+                                   f"log at evaluation {rec['index']}; use another --out")
+
+    @torch.no_grad()
+    def _decode(self, zs: list[np.ndarray]) -> list:
+        z = torch.as_tensor(np.stack(zs), dtype=torch.float64)
+        return self.model.decode(z)
+
+    def round(self, pool) -> int:
+        """One CMA-ES generation plus as many baseline robots; returns evaluations done."""
+        ev = self.log["evaluations"]
+        pop = self.cma.population_size
+        left = {m: self.budget - len(ev[m]) for m in METHODS}
+        jobs: list[tuple[str, int, object]] = []
+        start = len(ev["cma"]) - len(self.pending)  # index of this generation's first
+        if left["cma"] > 0:
+            zs = [self.cma.ask() for _ in range(pop)]
+            self._check_replay(zs, self.pending)
+            jobs += [("cma", start + k, z) for k, z in enumerate(zs)
+                     if k >= len(self.pending) and start + k < self.budget]
+        for k in range(min(pop, left["prior"])):
+            i = len(ev["prior"]) + k
+            jobs.append(("prior", i, latent(self.seed, i, self.dim).double().numpy()))
+        for k in range(min(pop, left["procedural"])):
+            i = len(ev["procedural"]) + k
+            jobs.append(("procedural", i, procedural_seed(self.seed, i)))
+        if not jobs:
+            return 0
+        latent_jobs = [j for j in jobs if j[0] != "procedural"]
+        graphs = iter(self._decode([j[2] for j in latent_jobs]) if latent_jobs else [])
+        work = self.out / ".work"
+        items = [(m, next(graphs) if m != "procedural" else p, str(work / f"{m}_{i:06d}"),
+                  self.model.feature_set.name, self.task, self.floating) for m, i, p in jobs]
+        results = list(pool.map(_evaluate, items)) if pool else [_evaluate(x) for x in items]
+        for (m, i, p), res in zip(jobs, results):
+            rec = {"index": i, **res}
+            rec.update({"seed": p} if m == "procedural" else
+                       {"z": [float(v) for v in p]})
+            ev[m].append(rec)
+        if left["cma"] > 0:
+            gen = ev["cma"][start:start + pop]
+            if len(gen) == pop:
+                self.cma.tell([(z, -r["score"]) for z, r in zip(zs, gen)])
+                self.pending = []
+            else:
+                self.pending = gen
+        _atomic_json(self.out / LOG, self.log)
+        return len(jobs)
+
+
+def _write_best(run: _Run) -> dict:
+    """Rewrite ``best/<method>/rank_<k>/`` from the log; returns the summary per method."""
+    from robovae.data.procedural import procedural_spec
+    from robovae.generate.rules import floating_base
+    from robovae.generate.writer import scene_xml, write_robot
+
+    best_dir = run.out / "best"
+    tmp = Path(tempfile.mkdtemp(prefix=".best.", dir=run.out))
+    summary = {}
+    for m in METHODS:
+        recs = sorted(run.log["evaluations"][m], key=lambda r: (-r["score"], r["index"]))
+        top = recs[:run.top]
+        summary[m] = {"evaluations": len(recs), "best": top[0]["score"] if top else 0.0,
+                      "best_index": top[0]["index"] if top else None}
+        for k, rec in enumerate(top):
+            folder = tmp / m / f"rank_{k}"
+            if m == "procedural":
+                folder.mkdir(parents=True)
+                (folder / "robot.xml").write_text(procedural_spec(rec["seed"]).to_xml())
+                (folder / "scene.xml").write_text(scene_xml("robot.xml", f"{m}_{k}_scene"))
+            else:
+                g = run._decode([np.array(rec["z"])])[0]
+                g = floating_base(g, run.model.feature_set)[0] if run.floating else g
+                write_robot(g, folder, run.model.feature_set, name=f"{m}_rank{k}")
+    shutil.rmtree(best_dir, ignore_errors=True)
+    os.replace(tmp, best_dir)
+    return summary
+
+
+def _plot(run: _Run, path: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 4), dpi=100)
+    ax = fig.add_subplot()
+    for m in METHODS:
+        scores = [r["score"] for r in run.log["evaluations"][m]]
+        ax.plot(np.arange(1, len(scores) + 1), best_so_far(scores), label=m)
+    ax.set_xlabel("evaluations")
+    ax.set_ylabel(f"best {run.task} score so far")
+    ax.set_title(f"robovae optimize: {run.task}, seed {run.seed}")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, format="png")
+    return path
+
+
+def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
+             seed: int = 0, jobs: int = 0, top: int = 3, progress: bool = True) -> dict:
+    """Run (or continue) an optimisation (module docstring).
+
+    Returns:
+        per method ``evaluations``, ``best`` score and ``best_index``; plus ``out``, ``log``,
+        ``plot``.
+
+    Raises:
+        RobovaeError: unknown task, ``budget <= 0``, bad checkpoint, ``out`` not usable.
+    """
+    if task not in TASKS:
+        raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
+    if budget <= 0:
+        raise RobovaeError(f"robovae: --budget must be > 0, got {budget}")
+    if top < 1:
+        raise RobovaeError(f"robovae: --top must be >= 1, got {top}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise RobovaeError(f"robovae: {out}: exists and is not a folder")
+    model = ckpt if isinstance(ckpt, RoboVAE) else load_model(ckpt)
+    run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top)
+    run.load()
+    out.mkdir(parents=True, exist_ok=True)
+    from tqdm.auto import tqdm
+
+    done = sum(min(len(v), budget) for v in run.log["evaluations"].values())
+    bar = tqdm(total=3 * budget, initial=done, desc=f"optimize {task}", unit="robot",
+               disable=not progress)
+    jobs = jobs or (os.cpu_count() or 1)
+    pool = worker_pool(jobs) if jobs > 1 else None
+    try:
+        while True:
+            k = run.round(pool)
+            if k == 0:
+                break
+            bar.update(k)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+        bar.close()
+        shutil.rmtree(out / ".work", ignore_errors=True)
+    summary = _write_best(run)
+    plot = _plot(run, out / "convergence.png")
+    return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(plot)}

@@ -1,0 +1,141 @@
+"""robovae optimize and the task scores: outputs, resume, baselines, one-line refusals."""
+
+from __future__ import annotations
+
+import json
+
+import mujoco
+import numpy as np
+import pytest
+
+from robovae.cli import main
+from robovae.data.procedural import procedural_spec
+from robovae.design.optimize import METHODS, best_so_far, optimize
+from robovae.design.score import reach_score, score_robot, walk_score
+
+
+@pytest.fixture(scope="module")
+def quadruped(tmp_path_factory):
+    path = tmp_path_factory.mktemp("q") / "q.xml"
+    path.write_text(procedural_spec(3, kind="quadruped").to_xml())
+    return path
+
+
+def test_walk_score_is_deterministic_and_normalised(quadruped):
+    a = walk_score(quadruped, trials=2, seconds=1.5, settle=0.5)
+    b = walk_score(quadruped, trials=2, seconds=1.5, settle=0.5)
+    assert a == b and a["score"] > 0
+    assert a["score"] == pytest.approx(a["speed"] / a["extent"])
+
+
+def test_scores_of_robots_that_cannot_do_the_task(tmp_path):
+    spec = procedural_spec(0)
+    for act in list(spec.actuators):
+        spec.delete(act)
+    passive = tmp_path / "passive.xml"
+    passive.write_text(spec.to_xml())
+    res = score_robot(passive, "walk")
+    assert res["score"] == 0.0 and "no actuators" in res["error"]
+    junk = tmp_path / "junk.xml"
+    junk.write_text("junk")
+    assert score_robot(junk, "stand")["score"] == 0.0
+    with pytest.raises(KeyError):
+        score_robot(passive, "fly")
+
+
+def arm(hinges: int) -> mujoco.MjSpec:
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False  # ranges below in radians
+    body = spec.worldbody.add_body(name="base")
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.05, 0.05, 0.05])
+    axes = [[0, 0, 1], [0, 1, 0], [0, 1, 0]]
+    for k in range(hinges):
+        body = body.add_body(name=f"l{k}", pos=[0, 0, 0.1] if k == 0 else [0.2, 0, 0])
+        body.add_joint(name=f"j{k}", axis=axes[k], range=[-1.5, 1.5],
+                       limited=mujoco.mjtLimited.mjLIMITED_TRUE)
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[0, 0, 0, 0.2, 0, 0],
+                      size=[0.02, 0, 0])
+    return spec
+
+
+def test_reach_volume_grows_with_the_arms_freedom(tmp_path):
+    vols = []
+    for n in (1, 2, 3):
+        path = tmp_path / f"arm{n}.xml"
+        path.write_text(arm(n).to_xml())
+        vols.append(reach_score(path, samples=256)["volume"])
+    assert vols[0] == 0.0  # one hinge sweeps an arc: a flat hull, no volume
+    assert 1e-3 < vols[1] < vols[2]
+
+
+def test_best_so_far():
+    assert best_so_far([1, 0, 3, 2]).tolist() == [1, 1, 3, 3]
+
+
+def test_optimize_writes_log_plot_best_and_resumes(trained_nodes, tmp_path):
+    model, _, ckpt = trained_nodes
+    out = tmp_path / "opt"
+    res = optimize(ckpt, "stand", 3, out, seed=1, jobs=1, top=2, progress=False)
+    log = json.loads((out / "log.json").read_text())
+    for m in METHODS:
+        recs = log["evaluations"][m]
+        assert [r["index"] for r in recs] == [0, 1, 2]
+        assert res[m]["best"] == max(r["score"] for r in recs)
+        assert (out / "best" / m / "rank_0" / "robot.xml").is_file()
+        assert (out / "best" / m / "rank_1" / "robot.xml").is_file()
+    assert all(len(r["z"]) == model.hparams.latent_dim for r in log["evaluations"]["cma"])
+    assert (out / "convergence.png").stat().st_size > 1000
+    assert not (out / ".work").exists()
+    # a larger budget continues: the logged evaluations are kept, CMA-ES is replayed
+    optimize(ckpt, "stand", 5, out, seed=1, jobs=1, top=2, progress=False)
+    log2 = json.loads((out / "log.json").read_text())
+    for m in METHODS:
+        assert log2["evaluations"][m][:3] == log["evaluations"][m]
+        assert len(log2["evaluations"][m]) == 5
+    # the same run from scratch reaches the same log
+    fresh = tmp_path / "fresh"
+    optimize(ckpt, "stand", 5, fresh, seed=1, jobs=1, top=2, progress=False)
+    assert json.loads((fresh / "log.json").read_text()) == log2
+
+
+def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys):
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "walk"
+    assert main(["optimize", "--ckpt", str(ckpt), "--task", "walk", "--budget", "2",
+                 "--out", str(out), "--jobs", "2"]) == 0
+    text = capsys.readouterr().out
+    assert "procedural" in text and "convergence" in text
+    log = json.loads((out / "log.json").read_text())
+    assert log["evaluations"]["procedural"][0]["score"] > 0  # procedural robots walk a bit
+    assert np.isfinite([r["score"] for m in METHODS for r in log["evaluations"][m]]).all()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--task", "fly", "--budget", "2"], "unknown task 'fly'"),
+    (["--task", "walk", "--budget", "0"], "--budget must be > 0"),
+    (["--task", "walk", "--budget", "-3"], "--budget must be > 0"),
+])
+def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, message):
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "o"
+    assert main(["optimize", "--ckpt", str(ckpt), "--out", str(out), *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and not out.exists()
+
+
+def test_optimize_refuses_a_bad_checkpoint_and_another_runs_log(trained_nodes, tmp_path,
+                                                                 capsys):
+    bad = tmp_path / "bad.ckpt"
+    bad.write_text("not a checkpoint")
+    out = tmp_path / "o"
+    assert main(["optimize", "--ckpt", str(bad), "--task", "walk", "--budget", "2",
+                 "--out", str(out)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1 and not out.exists()
+    _, _, ckpt = trained_nodes
+    optimize(ckpt, "reach", 1, out, seed=0, jobs=1, top=1, progress=False)
+    before = (out / "log.json").read_text()
+    assert main(["optimize", "--ckpt", str(ckpt), "--task", "stand", "--budget", "2",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "log of another run (task differ)" in err and err.count("\n") == 1
+    assert (out / "log.json").read_text() == before

@@ -1,0 +1,139 @@
+"""robovae generate --like and robovae interpolate: outputs, determinism, one-line refusals."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from robovae.cli import main
+from robovae.data.procedural import procedural_spec
+from robovae.design.variations import ball_offsets, encode_file
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("robots")
+    a, b = root / "a.xml", root / "b.xml"
+    a.write_text(procedural_spec(0, kind="quadruped").to_xml())
+    b.write_text(procedural_spec(1, kind="hexapod").to_xml())
+    junk = root / "junk.xml"
+    junk.write_text("<mujoco><worldbody></worldbody></mujoco>")
+    return a, b, junk
+
+
+def test_ball_offsets_are_inside_the_ball_and_fill_it():
+    rng = np.random.default_rng(0)
+    x = ball_offsets(rng, 4000, 3, 2.0)
+    r = np.linalg.norm(x, axis=1)
+    assert r.max() <= 2.0 + 1e-12
+    # uniform in a 3-ball: P(r < R/2) = 1/8
+    assert abs(np.mean(r < 1.0) - 0.125) < 0.02
+    assert np.allclose(ball_offsets(rng, 5, 3, 0.0), 0)
+
+
+def test_like_writes_variations_within_radius(trained_nodes, files, tmp_path, capsys):
+    model, _, ckpt = trained_nodes
+    a, _, _ = files
+    out = tmp_path / "like"
+    def argv(n: int) -> list[str]:
+        return ["generate", "--ckpt", str(ckpt), "--like", str(a), "--radius", "0.3", "-n",
+                str(n), "--out", str(out), "--jobs", "1", "--no-validate"]
+
+    assert main(argv(3)) == 0
+    assert "3 robots" in capsys.readouterr().out
+    recs = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
+    assert [r["index"] for r in recs] == [0, 1, 2]
+    mu, _ = encode_file(model, a)
+    for r in recs:
+        assert r["radius"] == 0.3 and r["like"] == str(a)
+        assert (out / r["path"]).is_file()
+        assert np.linalg.norm(np.array(r["latent"]) - mu.numpy()) <= 0.3 + 1e-4
+    # resuming with more robots keeps the first ones byte for byte
+    before = (out / "robot_000001" / "robot.xml").read_bytes()
+    assert main(argv(5)) == 0
+    assert (out / "robot_000001" / "robot.xml").read_bytes() == before
+    assert (out / "robot_000004" / "robot.xml").is_file()
+
+
+def test_radius_zero_gives_the_reconstruction(trained_nodes, files, tmp_path):
+    _, _, ckpt = trained_nodes
+    a, _, _ = files
+    out = tmp_path / "zero"
+    assert main(["generate", "--ckpt", str(ckpt), "--like", str(a), "--radius", "0", "-n", "2",
+                 "--out", str(out), "--jobs", "1", "--no-validate", "--no-scene"]) == 0
+    assert (out / "robot_000000" / "robot.xml").read_text().replace("000000", "") == \
+        (out / "robot_000001" / "robot.xml").read_text().replace("000001", "")
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--radius", "-1"], "--radius must be a finite number >= 0"),
+    (["-n", "0"], "-n must be >= 1"),
+])
+def test_like_refuses_bad_numbers(trained_nodes, files, tmp_path, capsys, extra, message):
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "bad"
+    assert main(["generate", "--ckpt", str(ckpt), "--like", str(files[0]), "--out", str(out),
+                 *extra]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and not out.exists()
+
+
+def test_like_refuses_a_file_that_is_not_a_robot(trained_nodes, files, tmp_path, capsys):
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "bad"
+    assert main(["generate", "--ckpt", str(ckpt), "--like", str(files[2]), "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "junk.xml" in err and err.count("\n") == 1 and not out.exists()
+
+
+def test_interpolate_writes_steps_and_sheet(trained_nodes, files, tmp_path, capsys):
+    _, _, ckpt = trained_nodes
+    a, b, _ = files
+    out = tmp_path / "path"
+    assert main(["interpolate", str(a), str(b), "--ckpt", str(ckpt), "--steps", "3",
+                 "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "sheet.png" in text and "0.500" in text
+    res = json.loads((out / "path.json").read_text())
+    assert [s["t"] for s in res["steps"]] == [0.0, 0.5, 1.0]
+    assert all((out / s["path"]).is_file() and s["reason"] for s in res["steps"])
+    from PIL import Image
+
+    assert Image.open(out / "sheet.png").size == (3 * 240, 180)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["path"]  # no temporary left
+
+
+@pytest.mark.parametrize("case", ["steps", "junk", "out"])
+def test_interpolate_refuses_bad_input(trained_nodes, files, tmp_path, capsys, case):
+    _, _, ckpt = trained_nodes
+    a, b, junk = files
+    out = tmp_path / "path"
+    argv = ["interpolate", str(a), str(b), "--ckpt", str(ckpt), "--steps", "3", "--out", str(out)]
+    if case == "steps":
+        argv[-3] = "1"
+    elif case == "junk":
+        argv[2] = str(junk)
+    else:
+        out.mkdir()
+        (out / "mine.txt").write_text("keep")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("robovae: ")
+    assert {"steps": "--steps must be >= 2", "junk": "junk.xml",
+            "out": "not empty"}[case] in err
+    if case == "out":
+        assert [p.name for p in out.iterdir()] == ["mine.txt"]
+    else:
+        assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == (["path"] if case == "out" else [])
+
+
+def test_bad_checkpoint_is_refused(files, tmp_path, capsys):
+    ck = tmp_path / "not.ckpt"
+    ck.write_text("nope")
+    out = tmp_path / "o"
+    assert main(["generate", "--ckpt", str(ck), "--like", str(files[0]), "--out", str(out)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1 and not out.exists()
