@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robovae.data.mjcf import load_robot, model_to_graph
+from robovae.data.loading import load_robot
+from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.evaluate.tables import format_table

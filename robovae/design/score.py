@@ -37,7 +37,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings
 
 __all__ = ["TASKS", "reach_score", "score_robot", "stand_score", "walk_score"]
 
@@ -114,7 +114,7 @@ def reach_score(path: str | os.PathLike, seed: int = 0, samples: int = 512) -> d
     """End-effector workspace volume over ``L^3`` of a fixed-base arm (module docstring)."""
     from scipy.spatial import ConvexHull, QhullError
 
-    from robovae.data.mjcf import load_robot
+    from robovae.data.loading import load_robot
     from robovae.evaluate.camera import robot_bounds
 
     model = load_robot(path).model

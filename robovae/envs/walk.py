@@ -67,7 +67,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.mujoco.mujoco_env import MujocoEnv
 
-from robovae.data.mjcf import capture_mujoco_warnings, load_robot, robot_root
+from robovae.data.loading import capture_mujoco_warnings, load_robot
+from robovae.data.mjcf import robot_root
 from robovae.errors import RobovaeError
 from robovae.evaluate.camera import robot_bounds
 from robovae.evaluate.scene import add_floor, has_floor

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings
 
 __all__ = ["ATTACH_TOL", "Attachment", "attachment"]
 

@@ -15,7 +15,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from robovae.data.mjcf import load_robot, model_to_graph
+from robovae.data.loading import load_robot
+from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.generate.attachment import ATTACH_TOL, attachment

@@ -10,7 +10,8 @@ import pytest
 import torch
 
 from robovae.data.features import LINK, get_feature_set
-from robovae.data.mjcf import load_robot, model_to_graph
+from robovae.data.loading import load_robot
+from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.generate.graph_view import GraphView
