@@ -74,17 +74,11 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
-from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
+from robovae.model.messages import level_messages
+from robovae.model.tree import TreeGRUCell, TreeSchedule, soft_clamp, tree_schedule
 
 #: what the decoder reads of each node (:class:`TreeDecoder` ``inputs``)
 INPUT_MODES = ("features", "types")
-
-
-def soft_clamp(logvar: Tensor, bound: float = 10.0) -> Tensor:
-    """``bound * tanh(logvar / bound)``: a node latent's log-variance kept inside
-    ``(-bound, bound)`` smoothly, so that neither ``e^{lambda^q}`` nor ``e^{-lambda^p}`` in the node
-    KL can overflow (a run once spiked to a loss of 1e20 without it)."""
-    return bound * torch.tanh(logvar / bound)
 
 
 @dataclass

@@ -7,8 +7,8 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
-from robovae.model.decoder import soft_clamp
-from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
+from robovae.model.messages import level_messages
+from robovae.model.tree import TreeGRUCell, TreeSchedule, soft_clamp, tree_schedule
 
 
 def reparametrize(mu: Tensor, logvar: Tensor) -> Tensor:
@@ -122,3 +122,37 @@ def _heads(h: Tensor, mu: nn.Linear, logvar: nn.Linear) -> tuple[Tensor, Tensor]
     hd = h.double()
     return tuple(F.linear(hd, head.weight.double(), head.bias.double()).to(h.dtype)
                  for head in (mu, logvar))
+
+
+def encode_reference(encoder: TreeEncoder, data: Data) -> tuple[Tensor, Tensor]:
+    """Naive per-tree encoder (a Python loop over directed edges), for tests/benchmarks.
+
+    Computes eq. 4–7 literally: every message ``m_ij`` from the list of ``m_ki``,
+    ``k in N(i)\\j``, with :meth:`TreeGRUCell.forward_set`. Returns ``(mu, logvar)``, ``[1, z]``.
+    """
+    parent = data.parent.tolist()
+    n = len(parent)
+    nbrs: list[list[int]] = [[] for _ in range(n)]
+    for i, p in enumerate(parent):
+        if p >= 0:
+            nbrs[i].append(p)
+            nbrs[p].append(i)
+    xp = encoder.proj(data.x)
+    memo: dict[tuple[int, int], Tensor] = {}
+
+    def msg(i: int, j: int) -> Tensor:
+        inc = [memo[(k, i)] for k in nbrs[i] if k != j]
+        stack = torch.stack(inc) if inc else xp.new_zeros(0, xp.shape[1])
+        return encoder.cell.forward_set(xp[i], stack)
+
+    for i in reversed(range(1, n)):  # upward: children are done before their parent
+        memo[(i, parent[i])] = msg(i, parent[i])
+    for i in range(1, n):  # downward: the parent's own down message is done first
+        memo[(parent[i], i)] = msg(parent[i], i)
+    h_g = xp.new_zeros(xp.shape[1])
+    for i in range(n):
+        if any(parent[k] == i for k in nbrs[i]):
+            continue  # not a leaf
+        inc = sum((memo[(k, i)] for k in nbrs[i]), xp.new_zeros(xp.shape[1]))
+        h_g = h_g + torch.relu(encoder.W_e(xp[i]) + encoder.U_e(inc))
+    return encoder.mu(h_g[None]), encoder.logvar(h_g[None])

@@ -37,7 +37,9 @@ from robovae.model.augment import jitter_features, tree_surgery
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
-from robovae.model.tree import level_messages, tree_schedule
+from robovae.model.messages import level_messages
+from robovae.model.prior import latent, node_noise
+from robovae.model.tree import tree_schedule
 
 # streams of :meth:`RoboVAE.run_seed`
 _SHUFFLE, _NOISE = 1, 2
@@ -299,10 +301,8 @@ class RoboVAE(L.LightningModule):
         (:class:`~robovae.generate.predict.LatentIndices`: ``z_i`` from ``(seed, i)``)."""
         if not isinstance(batch, dict):
             return self.reconstruct(batch)
-        from robovae.generate.pipeline import prior_latents
-
         seed, temp = int(batch["seed"][0]), float(batch["temperature"][0])
-        z, noise = prior_latents(self, seed, batch["index"].tolist(), temp)
+        z, noise = self.sample_prior(seed, batch["index"].tolist(), temp)
         return {"index": batch["index"], "z": z, "graphs": self.decode(z, node_noise=noise),
                 "seed": seed, "temperature": temp}
 
@@ -443,6 +443,21 @@ class RoboVAE(L.LightningModule):
         for d, name in zip(out, names):
             d.name = name
         return out
+
+    def sample_prior(self, seed: int, indices: Sequence[int],
+                     temperature: float = 1.0) -> tuple[Tensor, Tensor | None]:
+        """``(z, node_noise)`` of robots ``indices`` of a generation run with ``seed``: the
+        arguments of :meth:`decode` for ancestral sampling. ``z`` is ``[B, latent_dim]``
+        (:func:`~robovae.model.prior.latent`, ``N(0, T^2 I)``), ``node_noise``
+        ``[B, max_nodes, node_latent_dim]`` (:func:`~robovae.model.prior.node_noise`; ``None``
+        without node latents), both in the model's dtype; robot ``i`` draws the same values in
+        any batch."""
+        hp = self.hparams
+        z = torch.stack([latent(seed, int(i), hp.latent_dim, temperature) for i in indices])
+        dw = hp.get("node_latent_dim", 0)
+        noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, dw, temperature)
+                             for i in indices]).to(self.dtype) if dw else None
+        return z.to(self.dtype), noise
 
     @torch.no_grad()
     def sample(self, n: int, temperature: float = 1.0,

@@ -9,15 +9,9 @@ import torch
 from torch_geometric.data import Batch
 
 from robovae.data.graph import children, tree_data
-from robovae.model.encoder import TreeEncoder, reparametrize
-from robovae.model.tree import (
-    TreeGRUCell,
-    encode_reference,
-    exclusive_sibling_prefix,
-    level_messages,
-    level_messages_reference,
-    tree_schedule,
-)
+from robovae.model.encoder import TreeEncoder, encode_reference, reparametrize
+from robovae.model.messages import level_messages, level_messages_reference
+from robovae.model.tree import TreeGRUCell, exclusive_sibling_prefix, tree_schedule
 
 
 def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:

@@ -12,10 +12,10 @@ import torch
 from torch_geometric.data import Batch
 
 from robovae.data.graph import tree_data
-from robovae.model.decoder import TreeDecoder, soft_clamp
+from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
-from robovae.model.tree import tree_schedule
+from robovae.model.tree import soft_clamp, tree_schedule
 from tests.model.test_decoder import FULL, assert_decoded_as_scored, random_batch, random_tree
 
 DW = 6
