@@ -69,31 +69,18 @@ EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
                "17 robots (appendix A) -> Go2 (in training)"),
 )}
 
-_NO_LATENTS = ("--model.node_latent_dim=0", "--model.local_heads=false")
-_NO_AUGMENT = ("--model.feature_shift=0", "--model.feature_noise=0")
-_PAPER_DECODER = (*_NO_LATENTS, "--model.decoder_inputs=features", "--model.tree_surgery=0")
-
-#: Ablation variants: name -> (description, CLI overrides on top of the configs). The 2- and
+#: Runner variants: name -> (description, CLI overrides on top of the configs). The 2- and
 #: 4-robot configs and ``configs/loo17.yaml`` share one model block, so a variant means the same
-#: change in every experiment; runs go to ``runs/experiments/<experiment>/<variant>/``.
+#: change in every experiment; runs go to ``runs/experiments/<experiment>/<variant>/``. (The
+#: model variants of the ablation in ``docs/results.md`` were measured at commit ``b6c3bdf``;
+#: their code is in git history.)
 ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
     "default": ("the configs: node latents with local heads (the node posterior reads the "
                 "node's type and child count), type-input decoder, feature augmentation "
                 "(shift 1.0, noise 0.5), tree surgery 0.5", ()),
-    "paper": ("eq. 4-13 as published: one latent z, the decoder reads features, no depth/count "
-              "context, no augmentation", (*_PAPER_DECODER, "--model.topo_context=false",
-                                           *_NO_AUGMENT)),
-    "previous": ("this project before node latents: the paper + depth/count context + feature "
-                 "augmentation (shift 0.5, noise 0.1)",
-                 (*_PAPER_DECODER, "--model.feature_shift=0.5", "--model.feature_noise=0.1")),
-    "no_node_latents": ("the configs with one latent z only (type-input decoder, augmentation, "
-                        "tree surgery)", _NO_LATENTS),
-    "context_heads": ("node latents, but the type and topology heads also read z and the "
-                      "messages (eq. 9-11 + w)", ("--model.local_heads=false",)),
-    "no_structure": ("node latents with local heads, but the node posterior does not read the "
-                     "node's type and child count", ("--model.node_structure=false",)),
     "no_surgery": ("the configs without tree surgery", ("--model.tree_surgery=0",)),
-    "no_augment": ("the configs without feature augmentation", _NO_AUGMENT),
+    "no_augment": ("the configs without feature augmentation",
+                   ("--model.feature_shift=0", "--model.feature_noise=0")),
 }
 
 
@@ -355,16 +342,6 @@ def per_robot_table(results: list[dict], experiment: str, variant: str = "defaul
     return "\n".join(lines)
 
 
-def last_logged(metrics_csv: str | Path, key: str) -> float:
-    """The last value of ``key`` in a run's CSV log (``nan`` when the file or key is absent)."""
-    path = Path(metrics_csv)
-    if not path.is_file():
-        return math.nan
-    with path.open() as f:
-        values = [row[key] for row in csv.DictReader(f) if row.get(key)]
-    return float(values[-1]) if values else math.nan
-
-
 def loo_table(results: list[dict], variant: str = "default") -> str:
     """Markdown table of the leave-one-out runs: one row per held-out robot."""
     rs = _group(results, experiment="loo", variant=variant)
@@ -395,107 +372,6 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
     return "\n".join(lines)
 
 
-#: the leave-one-out variants shown side by side in docs/results.md
-LOO_COMPARE = ("paper", "previous", "default")
-
-
-def loo_compare_table(results: list[dict], variants: Sequence[str] = LOO_COMPARE) -> str:
-    """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true, the
-    held-out robot's teacher-forced topology loss at the end of training (``val/topo`` of the
-    run's log: the sum of the expansion BCE over its decisions, ``z = mu``, in nats) and the
-    decoded node count per held-out robot (mean ± spread over the seeds that every variant has
-    runs of), for the robots that every variant has run with all those seeds, and their mean.
-
-    The topology loss is the smooth counterpart of RA: greedy decoding turns one wrong decision
-    into a wrong subtree, while the loss says how far the model is from the right tree."""
-    runs: dict[str, dict[str, dict[int, dict]]] = {}
-    for v in variants:
-        for r in _group(results, experiment="loo", variant=v):
-            t = {**r["test"][0], "topo": last_logged(r.get("metrics_csv", ""), "val/topo")}
-            runs.setdefault(v, {}).setdefault(t["name"], {})[r["seed"]] = t
-    variants = [v for v in variants if v in runs]
-    seeds = sorted(set.intersection(*({s for ts in runs[v].values() for s in ts}
-                                        for v in variants))) if variants else []
-    both = [n for n in MENAGERIE17
-            if all(n in runs[v] and set(seeds) <= set(runs[v][n]) for v in variants)]
-    head = ["held-out robot", "nodes", *(f"RA {v}" for v in variants),
-            *(f"RA_true {v}" for v in variants), *(f"topology loss {v}" for v in variants),
-            "decoded nodes (" + " / ".join(variants) + ")"]
-    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
-    if not seeds:
-        return "\n".join(lines)
-
-    def cell(key: str, v: str, names: list[str]) -> str:  # per seed: mean over the robots
-        per_seed = [statistics.mean(runs[v][n][s][key] for n in names) for s in seeds]
-        return _ms(per_seed, "{:.1f}") if key == "topo" else _pct(per_seed)
-
-    def cells(names: list[str]) -> str:
-        return " | ".join(cell(k, v, names) for k in ("ra", "ra_true", "topo") for v in variants)
-
-    for n in both:
-        lines.append(f"| {n} | {runs[variants[0]][n][seeds[0]]['n_true']} | {cells([n])} | "
-                     + " / ".join(",".join(str(runs[v][n][s]["n_pred"]) for s in seeds)
-                                  for v in variants) + " |")
-    if both:
-        lines.append(f"| **mean over {len(both)} robots** | | {cells(both)}"
-                     f" | seeds {','.join(map(str, seeds))} (± over seeds) |")
-    return "\n".join(lines)
-
-
-#: the six robots that the leave-one-out of the models on the way to node latents got wrong
-#: (docs/results.md): the ablation's leave-one-out for the cheaper variants runs on these alone
-LOO_HARD = ("cassie", "N1", "talos", "tiago", "tiago_dual", "z1")
-
-
-def _loo_cell(tests: list[dict]) -> str:
-    """``mean RA / exact k of n`` over held-out robots (``n/a`` without runs)."""
-    if not tests:
-        return "n/a"
-    exact = sum(bool(t["exact"]) for t in tests)
-    return f"{_pct([statistics.mean(t['ra'] for t in tests)])} / {exact} of {len(tests)}"
-
-
-def ablation_table(results: list[dict]) -> str:
-    """Markdown table: one row per ablation variant: unseen Go2 from 2 and 4 robots (RA /
-    exact / FRE, mean ± spread over the seeds that ran) and the leave-one-out of the lowest seed
-    that ran, over all 17 robots (when every robot ran) and over :data:`LOO_HARD`."""
-    lines = ["| variant | change | 2 robots -> Go2: RA / exact / FRE | "
-             "4 robots -> Go2: RA / exact / FRE | LOO, 17 robots: mean RA / exact | "
-             f"LOO, {len(LOO_HARD)} hard robots: mean RA / exact |", "|---" * 6 + "|"]
-    for v, (desc, _) in ABLATIONS.items():
-        cells = []
-        for exp in ("menagerie2", "menagerie4"):
-            s = [r["summary"] for r in _group(results, experiment=exp, variant=v)]
-            cells.append(" / ".join([_pct([x["ra"] for x in s]), _pct([x["exact"] for x in s]),
-                                     _ms([x["fre"] for x in s], "{:.2g}")]) if s else "n/a")
-        rs = _group(results, experiment="loo", variant=v)
-        seed = min((r["seed"] for r in rs), default=0)
-        tests = {r["test"][0]["name"]: r["test"][0] for r in rs if r["seed"] == seed}
-        full = [tests[n] for n in MENAGERIE17 if n in tests]
-        cells.append(_loo_cell(full if len(full) == len(MENAGERIE17) else []))
-        cells.append(_loo_cell([tests[n] for n in LOO_HARD if n in tests]))
-        lines.append(f"| {v} | {desc} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def decoded_size_table(results: list[dict], experiment: str = "menagerie4") -> str:
-    """Markdown table: per ablation variant, the nodes of the test robot's greedy reconstruction
-    in every seed of ``experiment`` against its true size, with RA, RA_true and FRE. A decoded
-    tree larger than the true one is the paper's "extra limb" (RA_true stays high, RA drops)."""
-    lines = ["| variant | true nodes | decoded nodes (per seed) | RA | RA_true | FRE |",
-             "|---" * 6 + "|"]
-    for v in ABLATIONS:
-        rs = sorted(_group(results, experiment=experiment, variant=v), key=lambda r: r["seed"])
-        ts = [r["test"][0] for r in rs]
-        if not ts:
-            continue
-        lines.append(f"| {v} | {ts[0]['n_true']} | "
-                     f"{', '.join(str(t['n_pred']) for t in ts)} | "
-                     f"{_pct([t['ra'] for t in ts])} | {_pct([t['ra_true'] for t in ts])} | "
-                     f"{_ms([t['fre'] for t in ts], '{:.2g}')} |")
-    return "\n".join(lines)
-
-
 def _replace_block(text: str, key: str, body: str) -> str:
     start, end = f"<!-- auto:{key} -->", f"<!-- /auto:{key} -->"
     if start not in text:
@@ -518,9 +394,6 @@ def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     text = _replace_block(text, "experiments", experiments_table(results))
     text = _replace_block(text, "menagerie17", per_robot_table(results, "menagerie17"))
     text = _replace_block(text, "loo", loo_table(results))
-    text = _replace_block(text, "loo_compare", loo_compare_table(results, LOO_COMPARE))
-    text = _replace_block(text, "ablation", ablation_table(results))
-    text = _replace_block(text, "extra_limb", decoded_size_table(results, "menagerie4"))
     doc.write_text(text)
     print(f"wrote {doc}")
 

@@ -5,8 +5,9 @@ split by the datamodule and stored in every checkpoint), so ``RoboVAE.load_from_
 alone can encode robot files and decode robots in physical units.
 
 Loss (eq. 12–13):  L = Σ_t BCE(p_t, p̂_t) + Σ_j [MSE(f_j, f̂_j) + CE(s_j, ŝ_j)] + β L_KL,
-with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``; with
-node latents (``node_latent_dim``) also ``+ β_w Σ_j KL(q(w_j | G) || p(w_j | z, h_{p→j}, w_p))``.
+with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``, plus the
+node latents' ``β_w Σ_j KL(q(w_j | G) || p(w_j | z, h_{p→j}, w_p))`` (:mod:`robovae.model.loss`;
+the BCE, CE and KL terms in nats, the MSE in normalised feature units squared).
 
 Reproducible training: the randomness of an epoch — the shuffle order of a single-process
 training loader (a ``RandomSampler``) and the reparametrisation noise of each batch — is drawn
@@ -73,15 +74,9 @@ class RoboVAE(L.LightningModule):
         lr_min_factor: final learning rate as a fraction of ``lr`` for the cosine schedule.
         max_nodes: node limit of autoregressive decoding.
         max_depth: depth limit of autoregressive decoding.
-        topo_context: feed depth and child count to the expansion head (beyond eq. 9).
         support_margin: decoded features are clipped to the training range of each column
             widened by this fraction of its width (``None``: no clipping). Keeps prior samples
             on the support of the data: a log-scaled mass far outside it would be e^20 kg.
-        decoder_inputs: what the decoder reads of each node, ``"features"`` (eq. 9–10) or
-            ``"types"`` (one-hot node type; :mod:`robovae.model.decoder`).
-        latent_inputs: the decoder's GRU inputs also receive ``z`` (``x^p = W^p x + W^{zx} z``,
-            :mod:`robovae.model.decoder`); its messages then run after the encoder's instead
-            of in the same stacked pass.
         feature_shift: training-time feature augmentation
             (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
             feature column, in normalised units (0: off).
@@ -91,16 +86,10 @@ class RoboVAE(L.LightningModule):
             rebuilt by random limb edits (drop, duplicate, graft from a batch mate, swap) in a
             training step (0: off).
         surgery_ops: at most this many edits per rebuilt robot.
-        augment_until: augmentation (features and trees) runs for this fraction of
-            ``max_epochs``; the epochs after it train on the true robots (1.0: always augment).
-        node_latent_dim: width of the per-node latents ``w`` (0: none, the paper's model):
-            the encoder gives every node a posterior, the decoder reads it in the node's
-            heads and learns a conditional prior for generation (:mod:`robovae.model.decoder`).
+        node_latent_dim: width of the per-node latents ``w`` (at least 1): the encoder gives
+            every node a posterior, the decoder reads it in the node's heads and learns a
+            conditional prior for generation (:mod:`robovae.model.decoder`).
         beta_nodes: weight of the node latents' KL (``None``: follow β and its warm-up).
-        local_heads: with node latents, a node's type and its expand/backtrack decisions read
-            only its own latent and the child-count/depth context (:mod:`robovae.model.decoder`).
-        node_structure: the node posteriors read each node's type and number of children
-            (:class:`~robovae.model.encoder.TreeEncoder`; off only for the ablation).
     """
 
     def __init__(
@@ -117,19 +106,13 @@ class RoboVAE(L.LightningModule):
         lr_min_factor: float = 0.05,
         max_nodes: int = 256,
         max_depth: int = 64,
-        topo_context: bool = True,
         support_margin: float | None = 0.1,
         feature_shift: float = 0.0,
         feature_noise: float = 0.0,
-        augment_until: float = 1.0,
-        decoder_inputs: str = "features",
-        latent_inputs: bool = False,
         tree_surgery: float = 0.0,
         surgery_ops: int = 3,
-        node_latent_dim: int = 0,
+        node_latent_dim: int = 32,
         beta_nodes: float | None = None,
-        local_heads: bool = False,
-        node_structure: bool = True,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -137,11 +120,9 @@ class RoboVAE(L.LightningModule):
         self.feature_set = fs
         self.normalizer = Normalizer(fs)
         self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim, node_latent_dim,
-                                   fs.num_node_types, node_structure=node_structure)
+                                   fs.num_node_types)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
-                                   topo_context=topo_context, type_mask=fs.type_mask(),
-                                   inputs=decoder_inputs, latent_inputs=latent_inputs,
-                                   node_latent_dim=node_latent_dim, local_heads=local_heads)
+                                   node_latent_dim, type_mask=fs.type_mask())
         self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------
@@ -179,14 +160,9 @@ class RoboVAE(L.LightningModule):
 
     def augmenting(self) -> bool:
         """Whether this training epoch augments the robots (``feature_shift``/``noise`` or
-        ``tree_surgery`` set and ``epoch < augment_until * max_epochs``)."""
+        ``tree_surgery`` set)."""
         hp = self.hparams
-        if not (hp.feature_shift > 0 or hp.feature_noise > 0 or hp.tree_surgery > 0):
-            return False
-        trainer = self._trainer
-        if hp.augment_until >= 1 or trainer is None or not trainer.max_epochs:
-            return True
-        return self.current_epoch < hp.augment_until * trainer.max_epochs
+        return hp.feature_shift > 0 or hp.feature_noise > 0 or hp.tree_surgery > 0
 
     def beta_at(self, epoch: int) -> float:
         """β of an epoch: linear warm-up from ``beta_start`` to ``beta``."""
@@ -243,25 +219,18 @@ class RoboVAE(L.LightningModule):
             nb.x = jitter_features(nb.x, nb.x_mask, sched.graph, sched.num_graphs,
                                    hp.feature_shift, hp.feature_noise,
                                    keep=self.normalizer.is_cat, generator=generator)
-        # unless they read z (latent_inputs), the decoder's teacher-forced messages do not
-        # depend on z: run the encoder's and the decoder's level passes together (one stacked
-        # pass, the same as two separate ones); otherwise teacher forcing runs its own after z
+        # the decoder's teacher-forced messages read only the node types: the encoder's and
+        # the decoder's level passes run as one stacked pass (the same as two separate ones)
         enc, dec = self.encoder, self.decoder
-        stacked = dec.zin is None
         x = nb.x.index_select(0, sched.order)  # level order
-        px = [enc.cell.project(x, enc.proj.weight)]
-        if stacked:
-            px.append(dec.project_levels(dec.node_inputs(nb.x, nb.node_type), sched))
-        cells = [enc.cell, dec.cell] if stacked else [enc.cell]
-        down, total, sdown = level_messages(cells, torch.stack(px), sched, num_encoder=1)
-        messages = (down[1], total[1], sdown[1]) if stacked else None
+        px = torch.stack([enc.cell.project(x, enc.proj.weight),
+                          dec.project_levels(nb.node_type, sched, x.dtype)])
+        down, total, sdown = level_messages([enc.cell, dec.cell], px, sched, num_encoder=1)
         mu, logvar = enc.readout(x, total[0], sched)
         z = _draw(mu, logvar, sample, generator)
-        w = w_mu = w_logvar = None
-        if enc.node_latent_dim:
-            w_mu, w_logvar = enc.node_readout(x, total[0], sched, nb.node_type)
-            w = _draw(w_mu, w_logvar, sample, generator)
-        out = dec.teacher_forcing(z, nb, sched, messages=messages, w=w)
+        w_mu, w_logvar = enc.node_readout(x, total[0], sched, nb.node_type)
+        w = _draw(w_mu, w_logvar, sample, generator)
+        out = dec.teacher_forcing(z, nb, w, sched, messages=(down[1], total[1], sdown[1]))
         epoch = self.current_epoch
         return vae_loss(out, nb, mu, logvar, self.beta_at(epoch), w_mu, w_logvar,
                         self.beta_nodes_at(epoch))
@@ -274,9 +243,7 @@ class RoboVAE(L.LightningModule):
         terms = self(batch, sample=stage == "train", generator=gen)
         bs = batch.num_graphs
         # sync_dist: under DDP the epoch value is the mean over all ranks' robots
-        keys = ("loss", "topo", "feat", "type", "kl") + \
-            (("kl_nodes",) if self.hparams.get("node_latent_dim") else ())
-        for k in keys:
+        for k in ("loss", "topo", "feat", "type", "kl", "kl_nodes"):
             self.log(f"{stage}/{k}", terms[k], batch_size=bs, prog_bar=k == "loss",
                      on_epoch=True, on_step=False, sync_dist=True)
         if stage == "train":
@@ -336,8 +303,8 @@ class RoboVAE(L.LightningModule):
     @torch.no_grad()
     def encode_nodes(self, batch: Batch | Data) -> tuple[Tensor, list[Tensor]]:
         """``(mu, node_mu)``: each robot's latent mean ``[B, latent_dim]`` and its nodes' latent
-        means in pre-order (a list of ``[n_i, node_latent_dim]``; empty rows without node
-        latents): what :meth:`reconstruct` decodes."""
+        means in pre-order (a list of ``[n_i, node_latent_dim]``): what :meth:`reconstruct`
+        decodes."""
         if not isinstance(batch, Batch):
             batch = Batch.from_data_list([batch])
         nb = self.normalized(batch.to(self.device))
@@ -346,8 +313,6 @@ class RoboVAE(L.LightningModule):
         x, inward = enc.messages(nb, sched)
         mu, _ = enc.readout(x, inward, sched)
         counts = torch.bincount(sched.graph, minlength=sched.num_graphs).tolist()
-        if not enc.node_latent_dim:
-            return mu, [mu.new_zeros(n, 0) for n in counts]
         w_mu, _ = enc.node_readout(x, inward, sched, nb.node_type)
         return mu, list(torch.split(w_mu, counts))
 
@@ -389,7 +354,7 @@ class RoboVAE(L.LightningModule):
         """Greedy autoregressive decoding of latents ``z`` [B, latent] into robot graphs with
         physical feature values.
 
-        With node latents, ``node_latents`` (per robot ``[n_i, node_latent_dim]``, pre-order,
+        ``node_latents`` (per robot ``[n_i, node_latent_dim]``, pre-order,
         e.g. from :meth:`encode_nodes`) are used for the first ``n_i`` nodes; the other nodes
         are drawn from their conditional prior, ``mu^p + sigma^p * node_noise[b, t]``
         (``node_noise``: ``[B, >= max_nodes, node_latent_dim]``, temperature included), or take
@@ -437,37 +402,32 @@ class RoboVAE(L.LightningModule):
             batch = Batch.from_data_list([batch])
         mu, nodes = self.encode_nodes(batch)
         # no support clipping: a real robot may lie outside the training range
-        out = self.decode(mu, node_latents=nodes if self.encoder.node_latent_dim else None,
-                          clamp=False)
+        out = self.decode(mu, node_latents=nodes, clamp=False)
         names = batch.name if isinstance(batch.name, list) else [batch.name]
         for d, name in zip(out, names):
             d.name = name
         return out
 
     def sample_prior(self, seed: int, indices: Sequence[int],
-                     temperature: float = 1.0) -> tuple[Tensor, Tensor | None]:
+                     temperature: float = 1.0) -> tuple[Tensor, Tensor]:
         """``(z, node_noise)`` of robots ``indices`` of a generation run with ``seed``: the
         arguments of :meth:`decode` for ancestral sampling. ``z`` is ``[B, latent_dim]``
         (:func:`~robovae.model.prior.latent`, ``N(0, T^2 I)``), ``node_noise``
-        ``[B, max_nodes, node_latent_dim]`` (:func:`~robovae.model.prior.node_noise`; ``None``
-        without node latents), both in the model's dtype; robot ``i`` draws the same values in
-        any batch."""
+        ``[B, max_nodes, node_latent_dim]`` (:func:`~robovae.model.prior.node_noise`), both in
+        the model's dtype; robot ``i`` draws the same values in any batch."""
         hp = self.hparams
         z = torch.stack([latent(seed, int(i), hp.latent_dim, temperature) for i in indices])
-        dw = hp.get("node_latent_dim", 0)
-        noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, dw, temperature)
-                             for i in indices]).to(self.dtype) if dw else None
-        return z.to(self.dtype), noise
+        noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, hp.node_latent_dim,
+                                        temperature) for i in indices])
+        return z.to(self.dtype), noise.to(self.dtype)
 
     @torch.no_grad()
     def sample(self, n: int, temperature: float = 1.0,
                generator: torch.Generator | None = None) -> list[RobotData]:
-        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)`` (and, with node
-        latents, every node's latent from its conditional prior at the same temperature)."""
+        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)``, every node's
+        latent from its conditional prior at the same temperature."""
         hp = self.hparams
         z = torch.randn(n, hp.latent_dim, generator=generator) * temperature
-        noise = None
-        if hp.get("node_latent_dim"):
-            noise = torch.randn(n, hp.max_nodes, hp.node_latent_dim,
-                                generator=generator) * temperature
+        noise = torch.randn(n, hp.max_nodes, hp.node_latent_dim,
+                            generator=generator) * temperature
         return self.decode(z, node_noise=noise)

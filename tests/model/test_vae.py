@@ -80,29 +80,23 @@ def test_node_latent_api(trained_nodes):
     g = [[(s.num_nodes, float(s.x.sum())) for s in
           model.sample(4, generator=torch.Generator().manual_seed(k))] for k in (0, 0, 1)]
     assert g[0] == g[1] and g[0] != g[2]
-    plain_mu, plain_nodes = RoboVAE(hidden_dim=32, latent_dim=8).encode_nodes(batch)
-    assert [n.shape for n in plain_nodes] == [(r.num_nodes, 0) for r in robots]
 
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_node_latents_reconstruct_an_unseen_robot(tmp_path, menagerie_dir, cache_root, seed):
-    """Trained on Go1 and A1 only, both models rebuild Go2's tree; with node latents its
-    features are several times closer (the 2-robot experiment of docs/results.md, small)."""
+    """Trained on Go1 and A1 only, the model rebuilds Go2's tree, and its features closer
+    than half the FRE of a one-latent model (0.48 in the 2-robot experiment of
+    docs/results.md, which scores Go1's own features as 0.55)."""
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
                          train_names=["go1", "a1"], val_names=["go2"], test_names=["go2"],
                          batch_size=2)
-    fre = {}
-    for nodes in (0, 32):
-        L.seed_everything(seed)
-        extra = {"local_heads": True, "decoder_inputs": "types"} if nodes else {}
-        model = RoboVAE(hidden_dim=32, latent_dim=16, beta=1e-4, lr=3e-3, feature_shift=1.0,
-                        feature_noise=0.5, node_latent_dim=nodes, **extra)
-        _trainer(tmp_path, 300, check_val_every_n_epoch=10**6, gradient_clip_val=10).fit(model,
-                                                                                       dm)
-        (res,) = score_split(model.eval(), dm.test_set)
-        assert res.exact
-        fre[nodes] = res.fre
-    assert fre[32] < 0.5 * fre[0], fre
+    L.seed_everything(seed)
+    model = RoboVAE(hidden_dim=32, latent_dim=16, beta=1e-4, lr=3e-3, feature_shift=1.0,
+                    feature_noise=0.5, node_latent_dim=32)
+    _trainer(tmp_path, 300, check_val_every_n_epoch=10**6, gradient_clip_val=10).fit(model, dm)
+    (res,) = score_split(model.eval(), dm.test_set)
+    assert res.exact
+    assert res.fre < 0.24, res.fre
 
 
 def test_beta_annealing():
