@@ -78,9 +78,9 @@ ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
     "default": ("the configs: node latents with local heads (the node posterior reads the "
                 "node's type and child count), type-input decoder, feature augmentation "
                 "(shift 1.0, noise 0.5), tree surgery 0.5", ()),
-    "no_surgery": ("the configs without tree surgery", ("--model.tree_surgery=0",)),
+    "no_surgery": ("the configs without tree surgery", ("--data.tree_surgery=0",)),
     "no_augment": ("the configs without feature augmentation",
-                   ("--model.feature_shift=0", "--model.feature_noise=0")),
+                   ("--data.feature_shift=0", "--data.feature_noise=0")),
 }
 
 

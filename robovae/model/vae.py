@@ -10,40 +10,36 @@ node latents' ``β_w Σ_j KL(q(w_j | G) || p(w_j | z, h_{p→j}, w_p))`` (:mod:`
 the BCE, CE and KL terms in nats, the MSE in normalised feature units squared).
 
 Reproducible training: the randomness of an epoch — the shuffle order of a single-process
-training loader (a ``RandomSampler``) and the reparametrisation noise of each batch — is drawn
-from generators seeded by the run's seed (``seed_everything``), the epoch, the batch index and
-the rank, never from the global RNG. A run killed and resumed from an end-of-epoch checkpoint
-(``robovae fit ... --ckpt_path last``) therefore continues exactly like an uninterrupted run.
+training loader (a ``RandomSampler``), the reparametrisation noise of each batch and the
+datamodule's augmentation (:mod:`robovae.data.augment`) — is drawn from generators seeded by the
+run's seed (``seed_everything``), the epoch, the batch index and the rank
+(:func:`~robovae.data.augment.run_seed`), never from the global RNG. A run killed and resumed
+from an end-of-epoch checkpoint (``robovae fit ... --ckpt_path last``) therefore continues
+exactly like an uninterrupted run.
 Under DDP, Lightning's ``DistributedSampler`` shuffles by ``(seed, epoch)`` already.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import random
 from collections.abc import Mapping, Sequence
 
 import lightning as L
-import numpy as np
 import torch
 from torch import Tensor
 from torch.utils.data import DataLoader, RandomSampler
 from torch_geometric.data import Batch, Data
 
+from robovae.data.augment import NOISE, SHUFFLE, run_seed
 from robovae.data.features import Normalizer, get_feature_set
 from robovae.data.graph import RobotData, tree_data
 from robovae.errors import RobovaeError
-from robovae.model.augment import jitter_features, tree_surgery
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
 from robovae.model.messages import level_messages
 from robovae.model.prior import latent, node_noise
 from robovae.model.tree import tree_schedule
-
-# streams of :meth:`RoboVAE.run_seed`
-_SHUFFLE, _NOISE = 1, 2
 
 
 def _draw(mu: Tensor, logvar: Tensor, sample: bool,
@@ -77,15 +73,6 @@ class RoboVAE(L.LightningModule):
         support_margin: decoded features are clipped to the training range of each column
             widened by this fraction of its width (``None``: no clipping). Keeps prior samples
             on the support of the data: a log-scaled mass far outside it would be e^20 kg.
-        feature_shift: training-time feature augmentation
-            (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
-            feature column, in normalised units (0: off).
-        feature_noise: std of per-node feature noise, in normalised units (0: off).
-        tree_surgery: training-time topology augmentation
-            (:func:`~robovae.model.augment.tree_surgery`): probability that a training robot is
-            rebuilt by random limb edits (drop, duplicate, graft from a batch mate, swap) in a
-            training step (0: off).
-        surgery_ops: at most this many edits per rebuilt robot.
         node_latent_dim: width of the per-node latents ``w`` (at least 1): the encoder gives
             every node a posterior, the decoder reads it in the node's heads and learns a
             conditional prior for generation (:mod:`robovae.model.decoder`).
@@ -107,10 +94,6 @@ class RoboVAE(L.LightningModule):
         max_nodes: int = 256,
         max_depth: int = 64,
         support_margin: float | None = 0.1,
-        feature_shift: float = 0.0,
-        feature_noise: float = 0.0,
-        tree_surgery: float = 0.0,
-        surgery_ops: int = 3,
         node_latent_dim: int = 32,
         beta_nodes: float | None = None,
     ) -> None:
@@ -151,18 +134,16 @@ class RoboVAE(L.LightningModule):
         self.training_robots = checkpoint.get("robovae_training_robots", [])
 
     def normalized(self, batch: Batch) -> Batch:
-        """A shallow copy of ``batch`` whose ``x`` is in model units."""
+        """A shallow copy of ``batch`` whose ``x`` is in model units, plus the batch's
+        ``x_jitter`` when it has one (:class:`~robovae.data.augment.FeatureJitter`)."""
         out = batch.clone()
         out.x = self.normalizer(batch.x.to(self.device), batch.node_type.to(self.device))
+        jitter = getattr(batch, "x_jitter", None)
+        if jitter is not None:
+            out.x = out.x + jitter.to(out.x)
         return out
 
     # --- training ------------------------------------------------------------------------
-
-    def augmenting(self) -> bool:
-        """Whether this training epoch augments the robots (``feature_shift``/``noise`` or
-        ``tree_surgery`` set)."""
-        hp = self.hparams
-        return hp.feature_shift > 0 or hp.feature_noise > 0 or hp.tree_surgery > 0
 
     def beta_at(self, epoch: int) -> float:
         """β of an epoch: linear warm-up from ``beta_start`` to ``beta``."""
@@ -177,15 +158,6 @@ class RoboVAE(L.LightningModule):
         bn = self.hparams.get("beta_nodes")
         return self.beta_at(epoch) if bn is None else float(bn)
 
-    def run_seed(self, *keys: int) -> int:
-        """A seed derived from the run's seed (``seed_everything``'s ``PL_GLOBAL_SEED``, else
-        ``torch.initial_seed()``) and ``keys`` (stream, epoch, batch, rank)."""
-        base = os.environ.get("PL_GLOBAL_SEED")
-        base = int(base) if base is not None and base.lstrip("-").isdigit() \
-            else torch.initial_seed()
-        entropy = [abs(int(k)) for k in (base, *keys)]
-        return int(np.random.SeedSequence(entropy).generate_state(2, np.uint64)[0] >> 1)
-
     def on_train_epoch_start(self) -> None:
         """Seed this epoch's shuffle order from ``(seed, epoch)`` (see the module docstring):
         the global RNG is not part of a checkpoint, the epoch is."""
@@ -198,27 +170,15 @@ class RoboVAE(L.LightningModule):
             sampler = getattr(dl, "sampler", None) if isinstance(dl, DataLoader) else None
             if isinstance(sampler, RandomSampler):
                 sampler.generator = torch.Generator().manual_seed(
-                    self.run_seed(_SHUFFLE, self.current_epoch, k, self.global_rank))
+                    run_seed(SHUFFLE, self.current_epoch, k, self.global_rank))
 
     def forward(self, batch: Batch, sample: bool = True,
                 generator: torch.Generator | None = None) -> dict[str, Tensor]:
         """Loss terms of a batch of physical-unit robot graphs (teacher forcing). With
         ``sample``, ``z`` is drawn from ``q(z | G)`` (noise from ``generator`` when given).
-        Training batches are augmented first (``tree_surgery``, then the feature jitter)."""
-        hp = self.hparams
-        augment = sample and self.training and self.augmenting()
-        if augment and hp.tree_surgery > 0:
-            seed = generator.initial_seed() if generator is not None else \
-                int(torch.randint(2 ** 62, (1,)))
-            batch = Batch.from_data_list(tree_surgery(
-                batch.to_data_list(), self.feature_set, hp.tree_surgery, hp.surgery_ops,
-                hp.max_nodes, random.Random(seed)))
+        Training batches come augmented by the datamodule (:mod:`robovae.data.augment`)."""
         nb = self.normalized(batch)
         sched = tree_schedule(nb)
-        if augment:
-            nb.x = jitter_features(nb.x, nb.x_mask, sched.graph, sched.num_graphs,
-                                   hp.feature_shift, hp.feature_noise,
-                                   keep=self.normalizer.is_cat, generator=generator)
         # the decoder's teacher-forced messages read only the node types: the encoder's and
         # the decoder's level passes run as one stacked pass (the same as two separate ones)
         enc, dec = self.encoder, self.decoder
@@ -239,7 +199,7 @@ class RoboVAE(L.LightningModule):
         gen = None
         if stage == "train":  # noise of (seed, epoch, batch, rank): resumable, see the docstring
             gen = torch.Generator(device=self.device).manual_seed(
-                self.run_seed(_NOISE, self.current_epoch, batch_idx, self.global_rank))
+                run_seed(NOISE, self.current_epoch, batch_idx, self.global_rank))
         terms = self(batch, sample=stage == "train", generator=gen)
         bs = batch.num_graphs
         # sync_dist: under DDP the epoch value is the mean over all ranks' robots

@@ -89,10 +89,9 @@ def test_node_latents_reconstruct_an_unseen_robot(tmp_path, menagerie_dir, cache
     docs/results.md, which scores Go1's own features as 0.55)."""
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
                          train_names=["go1", "a1"], val_names=["go2"], test_names=["go2"],
-                         batch_size=2)
+                         batch_size=2, feature_shift=1.0, feature_noise=0.5)
     L.seed_everything(seed)
-    model = RoboVAE(hidden_dim=32, latent_dim=16, beta=1e-4, lr=3e-3, feature_shift=1.0,
-                    feature_noise=0.5, node_latent_dim=32)
+    model = RoboVAE(hidden_dim=32, latent_dim=16, beta=1e-4, lr=3e-3, node_latent_dim=32)
     _trainer(tmp_path, 300, check_val_every_n_epoch=10**6, gradient_clip_val=10).fit(model, dm)
     (res,) = score_split(model.eval(), dm.test_set)
     assert res.exact
