@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from robovae.evaluate import experiment_tables
 from robovae.evaluate import experiments as ex
 from robovae.model.checkpoint import load_model
 from tests.conftest import REPO
@@ -76,7 +77,7 @@ def test_report_fills_the_marked_blocks(tmp_path, monkeypatch):
     doc = tmp_path / "results.md"
     doc.write_text("# x\n<!-- auto:experiments -->\nold\n<!-- /auto:experiments -->\nkeep\n"
                    "<!-- auto:loo -->\n<!-- /auto:loo -->\n")
-    monkeypatch.setattr(ex, "DOCS", tmp_path)
+    monkeypatch.setattr(experiment_tables, "DOCS", tmp_path)
     ex.report(doc, root)
     text = doc.read_text()
     assert "old" not in text and "keep" in text
