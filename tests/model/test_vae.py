@@ -13,7 +13,9 @@ from torch_geometric.data import Batch
 
 from robovae.cli import main
 from robovae.data.datamodule import RobotDataModule
+from robovae.errors import RobovaeError
 from robovae.evaluate.callbacks import ReconstructionMetrics, score_split
+from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
 from tests.conftest import REPO
 
@@ -164,3 +166,24 @@ def test_reconstruction_callback_logs_per_robot(trained, tmp_path):
     assert {"test/RA", "test/RA_true", "test/exact"} <= set(trainer.callback_metrics)
     assert "test/RA/gym_hopper" in trainer.callback_metrics
     assert len(cb.last["test"]) == 2
+
+
+def test_checkpoints_of_earlier_versions_load_or_are_refused(trained_nodes, tmp_path):
+    """A checkpoint written before the ablation switches and the augmentation knobs left the
+    model loads when its model is the current one; a removed variant is refused in one line
+    that says how to retrain."""
+    model, dm, ckpt = trained_nodes
+    data = torch.load(ckpt, weights_only=True)
+    data["hyper_parameters"].update(topo_context=True, node_structure=True, local_heads=True,
+                                    latent_inputs=False, decoder_inputs="types",
+                                    feature_shift=1.0, feature_noise=0.5, tree_surgery=0.5,
+                                    surgery_ops=3, augment_until=1.0)
+    old = tmp_path / "old.ckpt"
+    torch.save(data, old)
+    robot = dm.test_set[0]
+    assert torch.equal(load_model(old).reconstruct(robot)[0].x, model.reconstruct(robot)[0].x)
+    data["hyper_parameters"].update(local_heads=False, decoder_inputs="features")
+    torch.save(data, old)
+    with pytest.raises(RobovaeError, match="removed.*local_heads=False.*retrain") as e:
+        load_model(old)
+    assert "\n" not in str(e.value)
