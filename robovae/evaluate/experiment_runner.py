@@ -116,7 +116,7 @@ def run_one(spec: RunSpec) -> dict:
     write ``<out>/result.json``; returns the result."""
     import torch
 
-    from robovae.evaluate.callbacks import score_split
+    from robovae.evaluate.callbacks import latent_costs, score_split
     from robovae.evaluate.metrics import summarize
     from robovae.model.cli import run_lightning_cli
 
@@ -142,6 +142,9 @@ def run_one(spec: RunSpec) -> dict:
     model, dm = cli.model.eval(), cli.datamodule
     results = score_split(model, dm.test_set)
     summary = summarize(results)
+    results_z = score_split(model, dm.test_set, from_z=True)
+    summary_z = summarize(results_z)
+    costs = latent_costs(model, dm.test_set)
     result = {
         "experiment": spec.experiment, "variant": spec.variant, "seed": spec.seed,
         "config": str(spec.config), "overrides": spec.overrides,
@@ -154,6 +157,11 @@ def run_one(spec: RunSpec) -> dict:
                   "fre": r.fre, "n_true": r.n_true, "n_pred": r.n_pred,
                   "n_correct": r.n_correct} for r in results],
         "summary": {k: summary[k] for k in ("ra", "ra_true", "exact", "fre", "count")},
+        # from z alone (node latents at their conditional-prior mean) and what the latents cost
+        "test_z": [{"name": r.name, "ra": r.ra, "ra_true": r.ra_true, "exact": r.exact,
+                    "fre": r.fre, "n_true": r.n_true, "n_pred": r.n_pred, **c}
+                   for r, c in zip(results_z, costs)],
+        "summary_z": {k: summary_z[k] for k in ("ra", "ra_true", "exact", "fre", "count")},
         "hparams": {k: v for k, v in dict(model.hparams).items()
                     if isinstance(v, (int, float, str, bool)) or v is None},
         "metrics_csv": str(out / "metrics.csv"),

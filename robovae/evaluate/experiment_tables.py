@@ -81,17 +81,21 @@ def _group(results: list[dict], **match) -> list[dict]:
 
 def experiments_table(results: list[dict], variant: str = "default") -> str:
     """Markdown table: one row per experiment, the paper's number beside ours (mean ±
-    spread over seeds)."""
-    lines = ["| experiment | paper | RA | RA_true | exact | FRE | seeds | epochs | fit wall (s) "
-             "| load | command |", "|---" * 11 + "|"]
+    spread over seeds), from ``z`` alone first (node latents at their conditional-prior mean;
+    ``n/a`` for runs made before it was recorded), then with every node's posterior latent."""
+    lines = ["| experiment | paper | RA from z | exact from z | FRE from z | RA | RA_true | exact "
+             "| FRE | seeds | epochs | fit wall (s) | load | command |", "|---" * 14 + "|"]
     for name, e in EXPERIMENTS.items():
         rs = sorted(_group(results, experiment=name, variant=variant), key=lambda r: r["seed"])
         if not rs:
             continue
         s = [r["summary"] for r in rs]
+        z = [r["summary_z"] for r in rs if "summary_z" in r]
         seeds = ",".join(str(r["seed"]) for r in rs)
         lines.append(
-            f"| {e.title} | {e.paper} | {_pct([x['ra'] for x in s])} | "
+            f"| {e.title} | {e.paper} | {_pct([x['ra'] for x in z])} | "
+            f"{_pct([x['exact'] for x in z])} | {_ms([x['fre'] for x in z], '{:.2g}')} | "
+            f"{_pct([x['ra'] for x in s])} | "
             f"{_pct([x['ra_true'] for x in s])} | {_pct([x['exact'] for x in s])} | "
             f"{_ms([x['fre'] for x in s], '{:.2g}')} | {seeds} | {rs[0]['epochs']} | "
             f"{_ms([r['fit_s'] for r in rs], '{:.0f}')} | "

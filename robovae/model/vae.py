@@ -356,17 +356,34 @@ class RoboVAE(L.LightningModule):
         return out
 
     @torch.no_grad()
-    def reconstruct(self, batch: Batch | Data) -> list[RobotData]:
-        """Encode (z = mu) and decode each robot; names follow the inputs."""
+    def reconstruct(self, batch: Batch | Data, from_z: bool = False) -> list[RobotData]:
+        """Encode (``z = mu``, node latents at their posterior means) and decode each robot;
+        names follow the inputs. ``from_z``: decode ``z = mu`` alone, every node latent at the
+        mean of its conditional prior (nothing read per node from the input): what the robot
+        latent carries by itself."""
         if not isinstance(batch, Batch):
             batch = Batch.from_data_list([batch])
         mu, nodes = self.encode_nodes(batch)
         # no support clipping: a real robot may lie outside the training range
-        out = self.decode(mu, node_latents=nodes, clamp=False)
+        out = self.decode(mu, node_latents=None if from_z else nodes, clamp=False)
         names = batch.name if isinstance(batch.name, list) else [batch.name]
         for d, name in zip(out, names):
             d.name = name
         return out
+
+    @torch.no_grad()
+    def latent_costs(self, batch: Batch | Data) -> dict[str, Tensor]:
+        """Per robot, in nats: ``kl_z`` = KL(q(z | G) || N(0, I)), ``kl_nodes`` = the sum over its
+        nodes of KL(q(w_i | G) || p(w_i | z, h, w_parent)), and ``nelbo_per_node`` = the negative
+        ELBO (:func:`~robovae.model.loss.vae_loss`, teacher forcing at the posterior means)
+        divided by the number of nodes; also ``nodes``. Tensors ``[B]``."""
+        if not isinstance(batch, Batch):
+            batch = Batch.from_data_list([batch])
+        terms = self(batch.to(self.device), sample=False)
+        nodes = torch.bincount(batch.batch.to(self.device), minlength=batch.num_graphs)
+        return {"kl_z": terms["per_graph_kl"], "kl_nodes": terms["per_graph_kl_nodes"],
+                "nelbo_per_node": terms["per_graph_nelbo"] / nodes.to(terms["per_graph_nelbo"]),
+                "nodes": nodes}
 
     def sample_prior(self, seed: int, indices: Sequence[int],
                      temperature: float = 1.0) -> tuple[Tensor, Tensor]:

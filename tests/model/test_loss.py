@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import random
 
 import torch
@@ -88,6 +89,9 @@ def test_terms_by_hand() -> None:
         out.topo_logits, out.topo_target, reduction="sum")
     torch.testing.assert_close(res["topo"], bce)
     torch.testing.assert_close(res["loss"], bce + feat + 2.0 * kl)
+    # the negative ELBO: every term at weight 1, features as a unit-variance Gaussian (nats)
+    nll = 0.5 * ((out.feat_pred - t.x) ** 2).sum() + 0.5 * math.log(2 * math.pi) * t.x.numel()
+    torch.testing.assert_close(res["per_graph_nelbo"], (bce + nll + kl)[None])
 
 
 def test_loss_decreases() -> None:

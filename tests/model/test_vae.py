@@ -14,7 +14,11 @@ from torch_geometric.data import Batch
 from robovae.cli import main
 from robovae.data.datamodule import RobotDataModule
 from robovae.errors import RobovaeError
-from robovae.evaluate.callbacks import ReconstructionMetrics, score_split
+from robovae.evaluate.callbacks import (
+    ReconstructionMetrics,
+    score_split,
+    split_metrics_from_z,
+)
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
 from tests.conftest import REPO
@@ -187,3 +191,24 @@ def test_checkpoints_of_earlier_versions_load_or_are_refused(trained_nodes, tmp_
     with pytest.raises(RobovaeError, match="removed.*local_heads=False.*retrain") as e:
         load_model(old)
     assert "\n" not in str(e.value)
+
+
+def test_from_z_reconstruction_and_latent_costs(trained_nodes):
+    """From z alone: z = mu and every node latent at its conditional-prior mean; the latents'
+    costs in nats: KL_z is the Gaussian KL of q(z | G), KL_nodes positive, and the negative
+    ELBO per node covers both."""
+    model, dm, _ = trained_nodes
+    robots = list(dm.test_set)
+    batch = Batch.from_data_list(robots)
+    mu, logvar = model.encode(batch)
+    for a, b in zip(model.reconstruct(batch, from_z=True), model.decode(mu, clamp=False)):
+        assert torch.equal(a.parent, b.parent) and torch.equal(a.x, b.x)
+    costs = model.latent_costs(batch)
+    torch.testing.assert_close(costs["kl_z"], -0.5 * (1 + logvar - mu**2 - logvar.exp()).sum(1))
+    assert costs["nodes"].tolist() == [r.num_nodes for r in robots]
+    assert bool((costs["kl_nodes"] > 0).all())
+    total = costs["nelbo_per_node"] * costs["nodes"]
+    assert bool((total > costs["kl_z"] + costs["kl_nodes"]).all())
+    m = split_metrics_from_z(model, robots)
+    assert set(m) == {"RA_z", "RA_true_z", "exact_z", "FRE_z", "KL_z", "KL_nodes", "NELBO_node"}
+    assert 0 <= m["RA_z"] <= 1 and m["KL_z"] == pytest.approx(float(costs["kl_z"].mean()))
