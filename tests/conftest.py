@@ -78,6 +78,5 @@ def trained(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def trained_nodes(tmp_path_factory):
-    """The same with node latents and local heads (the configs' model)."""
-    return _train_small(tmp_path_factory.mktemp("zoo_nodes"), node_latent_dim=6,
-                        local_heads=True, decoder_inputs="types")
+    """The same with 6-wide node latents."""
+    return _train_small(tmp_path_factory.mktemp("zoo_nodes"), node_latent_dim=6)

@@ -11,6 +11,7 @@ from torch.utils.data import DataLoader as TorchDataLoader
 from torch_geometric.data import Batch
 from torch_geometric.loader import DataLoader
 
+from robovae.data.augment import Augmentation, FeatureJitter, TreeSurgery
 from robovae.data.dataset import RobotDataset
 from robovae.data.features import Normalizer
 from robovae.data.latents import LatentIndices
@@ -63,6 +64,19 @@ class RobotDataModule(L.LightningDataModule):
             ``0 … n-1``, see :mod:`robovae.generate.predict`) instead of the test robots.
         predict_seed: seed of those samples.
         predict_temperature: prior temperature of those samples.
+        feature_shift: training-batch augmentation (:class:`~robovae.data.augment.FeatureJitter`):
+            std of a per-robot offset on every feature column, normalised units (0: off).
+        feature_noise: std of per-node feature noise, normalised units (0: off).
+        tree_surgery: probability that a training robot is rebuilt by random limb edits in a
+            step (:class:`~robovae.data.augment.TreeSurgery`; 0: off).
+        surgery_ops: at most this many edits per rebuilt robot.
+        surgery_max_nodes: tree surgery never makes a robot larger than this (the model's
+            ``max_nodes``).
+
+    Training batches are augmented on the device (:meth:`on_after_batch_transfer`), tree
+    surgery first, with generators seeded by ``(seed_everything's seed, epoch, batch index,
+    rank)`` (:func:`~robovae.data.augment.run_seed`): a run resumed from an end-of-epoch
+    checkpoint augments exactly like an uninterrupted one.
     """
 
     def __init__(
@@ -82,6 +96,11 @@ class RobotDataModule(L.LightningDataModule):
         predict_samples: int = 0,
         predict_seed: int = 0,
         predict_temperature: float = 1.0,
+        feature_shift: float = 0.0,
+        feature_noise: float = 0.0,
+        tree_surgery: float = 0.0,
+        surgery_ops: int = 3,
+        surgery_max_nodes: int = 256,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -91,6 +110,7 @@ class RobotDataModule(L.LightningDataModule):
         # (RobotWriter sets one that also ties the output folder to the run)
         self.predict_skip: Sequence[int] | Callable[[], Sequence[int]] = []
         self.predict_set: LatentIndices | None = None
+        self.augmentation: Augmentation | None = None
 
     @property
     def feature_set(self) -> str:
@@ -145,6 +165,16 @@ class RobotDataModule(L.LightningDataModule):
         x = torch.cat([d.x for d in self.train_set])
         t = torch.cat([d.node_type for d in self.train_set])
         self.normalizer = Normalizer(self.dataset.feature_set).fit(x, t)
+        self.augmentation = self.train_augmentation()
+
+    def train_augmentation(self) -> Augmentation | None:
+        """The transforms of the training batches (``None`` when every knob is off)."""
+        hp, fs = self.hparams, self.feature_set
+        surgery = TreeSurgery(fs, hp.tree_surgery, hp.surgery_ops, hp.surgery_max_nodes) \
+            if hp.tree_surgery > 0 else None
+        jitter = FeatureJitter(fs, hp.feature_shift, hp.feature_noise) \
+            if hp.feature_shift > 0 or hp.feature_noise > 0 else None
+        return Augmentation(surgery, jitter) if surgery or jitter else None
 
     def transfer_batch_to_device(self, batch, device: torch.device, dataloader_idx: int):
         """Robot batches move with PyG's own ``Batch.to`` (nothing to do when they are already
@@ -153,6 +183,19 @@ class RobotDataModule(L.LightningDataModule):
         if isinstance(batch, Batch):
             return batch if batch.x.device == device else batch.to(device)
         return super().transfer_batch_to_device(batch, device, dataloader_idx)
+
+    def on_after_batch_transfer(self, batch, dataloader_idx: int):
+        """Augment a training batch (:attr:`augmentation`), seeded by ``(epoch, batch index,
+        rank)`` of the trainer; other batches pass unchanged."""
+        trainer = self.trainer
+        if (self.augmentation is None or trainer is None or not trainer.training
+                or not isinstance(batch, Batch)):
+            return batch
+        # the loop increments its batch counter right after this hook: +1 is the batch_idx
+        # that training_step receives
+        index = trainer.fit_loop.epoch_loop.batch_idx + 1
+        self.augmentation.seed(trainer.current_epoch, index, trainer.global_rank)
+        return self.augmentation(batch)
 
     def train_dataloader(self) -> DataLoader:
         """Shuffled PyG loader over the training robots."""

@@ -1,10 +1,14 @@
-"""Lightning callback that scores autoregressive reconstructions (RA, RA_true, exact, FRE).
+"""Lightning callback that scores autoregressive reconstructions (RA, RA_true, exact, FRE), in
+full (z and every node's posterior latent) and from the robot latent alone.
 
 Teacher-forced losses say little about what the decoder does on its own, so every
 ``every_n_epochs`` validation epochs, and at test time, the robots of the split are encoded
 (z = μ) and decoded greedily, and the metrics of :mod:`robovae.evaluate.metrics` are logged as
 ``<stage>/RA``, ``<stage>/RA_true``, ``<stage>/exact``, ``<stage>/FRE`` (means) and
-``<stage>/RA/<robot>``, ``<stage>/FRE/<robot>`` (per robot).
+``<stage>/RA/<robot>``, ``<stage>/FRE/<robot>`` (per robot); from ``z`` alone (node latents at
+their conditional-prior mean) ``<stage>/RA_z``, ``RA_true_z``, ``exact_z``, ``FRE_z``; and the
+cost of the latents, ``<stage>/KL_z`` and ``<stage>/KL_nodes`` (nats per robot), and
+``<stage>/NELBO_node`` (negative ELBO, nats per node, :func:`~robovae.model.loss.vae_loss`).
 """
 
 from __future__ import annotations
@@ -17,16 +21,45 @@ from torch_geometric.data import Batch
 from robovae.evaluate.metrics import Reconstruction, reconstruction_metrics, summarize
 
 
-def score_split(pl_module, robots, batch_size: int = 64) -> list[Reconstruction]:
-    """Reconstruct ``robots`` (a dataset or list of ``Data``) and score each one."""
+def score_split(pl_module, robots, batch_size: int = 64,
+                from_z: bool = False) -> list[Reconstruction]:
+    """Reconstruct ``robots`` (a dataset or list of ``Data``) and score each one; ``from_z``:
+    from the robot latent alone (:meth:`RoboVAE.reconstruct
+    <robovae.model.vae.RoboVAE.reconstruct>`)."""
     robots = list(robots)
     results = []
     for start in range(0, len(robots), batch_size):
         chunk = robots[start:start + batch_size]
-        decoded = pl_module.reconstruct(Batch.from_data_list(chunk))
+        decoded = pl_module.reconstruct(Batch.from_data_list(chunk), from_z=from_z)
         results += [reconstruction_metrics(t, p, pl_module.normalizer, pl_module.feature_set)
                     for t, p in zip(chunk, decoded)]
     return results
+
+
+def latent_costs(pl_module, robots, batch_size: int = 64) -> list[dict[str, float]]:
+    """Per robot: ``kl_z``, ``kl_nodes`` (nats per robot) and ``nelbo_per_node`` (nats) of
+    :meth:`RoboVAE.latent_costs <robovae.model.vae.RoboVAE.latent_costs>`, and ``nodes``."""
+    robots = list(robots)
+    out: list[dict[str, float]] = []
+    for start in range(0, len(robots), batch_size):
+        costs = pl_module.latent_costs(Batch.from_data_list(robots[start:start + batch_size]))
+        out += [{k: float(v[i]) for k, v in costs.items()} for i in range(len(costs["nodes"]))]
+    return out
+
+
+def split_metrics_from_z(pl_module, robots) -> dict[str, float]:
+    """The from-z part of :func:`split_metrics` (``RA_z`` ... ``FRE_z``, ``KL_z``,
+    ``KL_nodes``, ``NELBO_node``)."""
+    names = {"ra": "RA_z", "ra_true": "RA_true_z", "exact": "exact_z", "fre": "FRE_z"}
+    s = summarize(score_split(pl_module, robots, from_z=True))
+    out = {names[k]: s[k] for k in names}
+    costs = latent_costs(pl_module, robots)
+    if costs:
+        out["KL_z"] = sum(c["kl_z"] for c in costs) / len(costs)
+        out["KL_nodes"] = sum(c["kl_nodes"] for c in costs) / len(costs)
+        out["NELBO_node"] = sum(c["nelbo_per_node"] * c["nodes"] for c in costs) / \
+            sum(c["nodes"] for c in costs)
+    return out
 
 
 class ReconstructionMetrics(L.Callback):
@@ -45,9 +78,14 @@ class ReconstructionMetrics(L.Callback):
         self.max_per_robot = max_per_robot
         self.last: dict[str, list[Reconstruction]] = {}
 
-    def _log(self, pl_module, stage: str, results: list[Reconstruction]) -> None:
+    def _log(self, pl_module, stage: str, robots) -> None:
+        results = score_split(pl_module, robots)
         self.last[stage] = results
         summary = summarize(results)
+        from_z = split_metrics_from_z(pl_module, robots)
+        for name, value in from_z.items():
+            if not math.isnan(value):
+                pl_module.log(f"{stage}/{name}", value, batch_size=len(results))
         for key in ("ra", "ra_true", "exact", "fre"):
             value = summary[key]
             name = {"ra": "RA", "ra_true": "RA_true", "exact": "exact", "fre": "FRE"}[key]
@@ -68,8 +106,8 @@ class ReconstructionMetrics(L.Callback):
         last = trainer.max_epochs is not None and epoch >= trainer.max_epochs
         if epoch % self.every_n_epochs and not last:
             return
-        self._log(pl_module, "val", score_split(pl_module, trainer.datamodule.val_set))
+        self._log(pl_module, "val", trainer.datamodule.val_set)
 
     def on_test_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
         """Decode the test robots and log the ``test/*`` metrics (also per robot)."""
-        self._log(pl_module, "test", score_split(pl_module, trainer.datamodule.test_set))
+        self._log(pl_module, "test", trainer.datamodule.test_set)

@@ -3,7 +3,8 @@
 Every experiment is a Lightning CLI config under ``configs/`` (``robovae fit --config ...`` runs it
 alone); this module runs them for several seeds, scores the greedy reconstructions of the test
 robots (RA, RA_true, exact, FRE; :mod:`robovae.evaluate.metrics`), stores one ``result.json`` per
-run, and renders the result tables and loss curves::
+run, and renders the result tables and loss curves (runner:
+:mod:`robovae.evaluate.experiment_runner`, tables: :mod:`robovae.evaluate.experiment_tables`)::
 
     python -m robovae.evaluate.experiments run menagerie4 --seeds 0,1,2
     python -m robovae.evaluate.experiments loo --seeds 0,1,2      # leave-one-out over the 17
@@ -20,512 +21,32 @@ machine load measured around it.
 from __future__ import annotations
 
 import argparse
-import csv
-import json
-import math
-import os
-import statistics
-import subprocess
 import sys
-import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
-import lightning as L
-
-REPO = Path(__file__).resolve().parents[2]
-RUNS = Path("runs/experiments")
-DOCS = REPO / "docs"
-
-#: the 17 robots of the paper's appendix A, by their names in the dataset
-MENAGERIE17 = ("piper_description", "cassie", "berkeley_humanoid", "T1", "spot", "N1",
-               "barkour v0", "barkour_vb", "talos", "tiago", "tiago_dual", "a1", "g1", "go1",
-               "go2", "h1", "z1")
-
-
-@dataclass(frozen=True)
-class Experiment:
-    """One row of SPEC §6: a config, what the paper reports, and extra CLI overrides."""
-
-    name: str
-    config: str
-    paper: str
-    title: str
-    overrides: tuple[str, ...] = ()
-
-
-EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
-    Experiment("overfit_go2", "configs/overfit_go2.yaml", "RA 100 %, FRE ~0",
-               "overfit: Go2 -> Go2"),
-    Experiment("synthetic", "configs/synthetic.yaml", "structure exact, small FRE",
-               "synthetic: 20 random trees -> unseen tree"),
-    Experiment("menagerie2", "configs/menagerie2.yaml", "RA 100 %, FRE ~1e-3",
-               "2 robots (Go1, A1) -> Go2"),
-    Experiment("menagerie4", "configs/menagerie4.yaml", "RA 81 % (extra limb), FRE ~1e-3",
-               "4 robots (Go1, G1, A1, H1) -> Go2"),
-    Experiment("menagerie17", "configs/menagerie17.yaml",
-               "RA 100 %, FRE 'relatively high' (not converged)",
-               "17 robots (appendix A) -> Go2 (in training)"),
-)}
-
-_NO_LATENTS = ("--model.node_latent_dim=0", "--model.local_heads=false")
-_NO_AUGMENT = ("--model.feature_shift=0", "--model.feature_noise=0")
-_PAPER_DECODER = (*_NO_LATENTS, "--model.decoder_inputs=features", "--model.tree_surgery=0")
-
-#: Ablation variants: name -> (description, CLI overrides on top of the configs). The 2- and
-#: 4-robot configs and ``configs/loo17.yaml`` share one model block, so a variant means the same
-#: change in every experiment; runs go to ``runs/experiments/<experiment>/<variant>/``.
-ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "default": ("the configs: node latents with local heads (the node posterior reads the "
-                "node's type and child count), type-input decoder, feature augmentation "
-                "(shift 1.0, noise 0.5), tree surgery 0.5", ()),
-    "paper": ("eq. 4-13 as published: one latent z, the decoder reads features, no depth/count "
-              "context, no augmentation", (*_PAPER_DECODER, "--model.topo_context=false",
-                                           *_NO_AUGMENT)),
-    "previous": ("this project before node latents: the paper + depth/count context + feature "
-                 "augmentation (shift 0.5, noise 0.1)",
-                 (*_PAPER_DECODER, "--model.feature_shift=0.5", "--model.feature_noise=0.1")),
-    "no_node_latents": ("the configs with one latent z only (type-input decoder, augmentation, "
-                        "tree surgery)", _NO_LATENTS),
-    "context_heads": ("node latents, but the type and topology heads also read z and the "
-                      "messages (eq. 9-11 + w)", ("--model.local_heads=false",)),
-    "no_structure": ("node latents with local heads, but the node posterior does not read the "
-                     "node's type and child count", ("--model.node_structure=false",)),
-    "no_surgery": ("the configs without tree surgery", ("--model.tree_surgery=0",)),
-    "no_augment": ("the configs without feature augmentation", _NO_AUGMENT),
-}
-
-
-def _loadavg() -> float:
-    try:
-        return os.getloadavg()[0]
-    except OSError:  # pragma: no cover
-        return math.nan
-
-
-class FitTimer(L.Callback):
-    """Wall time of ``trainer.fit`` (first to last training batch hooks) and the load average."""
-
-    def __init__(self) -> None:
-        self.start = self.end = 0.0
-        self.load_start = self.load_end = math.nan
-
-    def on_fit_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
-        """Start the wall clock."""
-        self.start, self.load_start = time.perf_counter(), _loadavg()
-
-    def on_fit_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
-        """Stop the wall clock (the fit took ``end - start`` seconds)."""
-        self.end, self.load_end = time.perf_counter(), _loadavg()
-
-
-@dataclass
-class RunSpec:
-    """One training run: a config, a seed, extra overrides and where it goes."""
-
-    experiment: str
-    config: str
-    seed: int
-    out: Path
-    overrides: list[str] = field(default_factory=list)
-    variant: str = "default"
-    epochs: int | None = None
-    threads: int = 0
-
-
-def _names_arg(key: str, names: Sequence[str]) -> str:
-    return f"--data.{key}={json.dumps(list(names))}"
-
-
-def run_one(spec: RunSpec) -> dict:
-    """Train ``spec`` through the Lightning CLI (``robovae fit``), score its test robots and
-    write ``<out>/result.json``; returns the result."""
-    import torch
-
-    from robovae.evaluate.callbacks import score_split
-    from robovae.evaluate.metrics import summarize
-    from robovae.model.cli import run_lightning_cli
-
-    if spec.threads:
-        torch.set_num_threads(spec.threads)
-    out = spec.out
-    out.mkdir(parents=True, exist_ok=True)
-    argv = ["fit", "--config", str(spec.config), f"--seed_everything={spec.seed}",
-            "--trainer.logger.class_path=lightning.pytorch.loggers.CSVLogger",
-            f"--trainer.logger.init_args.save_dir={out.parent}",
-            "--trainer.logger.init_args.name=",
-            f"--trainer.logger.init_args.version={out.name}",
-            f"--checkpoint.dirpath={out / 'checkpoints'}",
-            '--trainer.callbacks+={"class_path": "robovae.evaluate.experiments.FitTimer"}',
-            *spec.overrides]
-    if spec.epochs:
-        argv.append(f"--trainer.max_epochs={spec.epochs}")
-    load0, t0 = _loadavg(), time.perf_counter()
-    cli = run_lightning_cli(argv)
-    command_s = time.perf_counter() - t0
-    # (by name: under ``python -m`` this module is ``__main__``, the callback's class is not)
-    timer = next(c for c in cli.trainer.callbacks if type(c).__name__ == "FitTimer")
-    model, dm = cli.model.eval(), cli.datamodule
-    results = score_split(model, dm.test_set)
-    summary = summarize(results)
-    result = {
-        "experiment": spec.experiment, "variant": spec.variant, "seed": spec.seed,
-        "config": str(spec.config), "overrides": spec.overrides,
-        "epochs": int(cli.trainer.current_epoch),
-        "fit_s": timer.end - timer.start, "command_s": command_s,
-        "load_start": load0, "load_fit_start": timer.load_start, "load_end": timer.load_end,
-        "threads": torch.get_num_threads(),
-        "train_names": [str(d.name) for d in dm.train_set],
-        "test": [{"name": r.name, "ra": r.ra, "ra_true": r.ra_true, "exact": r.exact,
-                  "fre": r.fre, "n_true": r.n_true, "n_pred": r.n_pred,
-                  "n_correct": r.n_correct} for r in results],
-        "summary": {k: summary[k] for k in ("ra", "ra_true", "exact", "fre", "count")},
-        "hparams": {k: v for k, v in dict(model.hparams).items()
-                    if isinstance(v, (int, float, str, bool)) or v is None},
-        "metrics_csv": str(out / "metrics.csv"),
-        "commit": _commit(),
-    }
-    (out / "result.json").write_text(json.dumps(result, indent=1))
-    del cli
-    return result
-
-
-def _commit() -> str:
-    try:
-        head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"],
-                              capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--", "robovae",
-                                "configs"], capture_output=True, text=True).stdout.strip()
-        return head + ("+dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def _run_all(specs: list[RunSpec], jobs: int, skip_done: bool) -> list[dict]:
-    todo = [s for s in specs if not (skip_done and (s.out / "result.json").is_file())]
-    done = [json.loads((s.out / "result.json").read_text()) for s in specs if s not in todo]
-    if jobs <= 1:
-        for s in todo:
-            done.append(_announce(run_one(s)))
-        return done
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(jobs, mp_context=ctx) as pool:
-        for r in pool.map(run_one, todo):
-            done.append(_announce(r))
-    return done
-
-
-def _announce(r: dict) -> dict:
-    s = r["summary"]
-    print(f"[{r['experiment']}/{r['variant']}/seed{r['seed']}] RA {s['ra']:.4f} RA_true "
-          f"{s['ra_true']:.4f} exact {s['exact']:.3f} FRE {s['fre']:.3g}  ({r['epochs']} "
-          f"epochs, fit {r['fit_s']:.1f} s, load {r['load_fit_start']:.1f})", flush=True)
-    return r
-
-
-def experiment_specs(name: str, seeds: Sequence[int], variant: str = "default",
-                     extra: Sequence[str] = (), epochs: int | None = None,
-                     threads: int = 0, root: Path = RUNS) -> list[RunSpec]:
-    """Runs of experiment ``name`` (:data:`EXPERIMENTS`), one per seed."""
-    e = EXPERIMENTS[name]
-    return [RunSpec(name, e.config, s, Path(root) / name / variant / f"seed{s}",
-                    [*e.overrides, *extra], variant, epochs, threads) for s in seeds]
-
-
-def loo_specs(seeds: Sequence[int], robots: Sequence[str] = MENAGERIE17, variant: str = "default",
-              extra: Sequence[str] = (), epochs: int | None = None,
-              threads: int = 0, root: Path = RUNS) -> list[RunSpec]:
-    """Leave-one-out over the 17 robots: train on 16 (``configs/loo17.yaml``), test the 17th."""
-    specs = []
-    for robot in robots:
-        train = [n for n in MENAGERIE17 if n != robot]
-        ov = [_names_arg("train_names", train), _names_arg("val_names", [robot]),
-              _names_arg("test_names", [robot]), *extra]
-        slug = robot.replace(" ", "_")
-        specs += [RunSpec("loo", "configs/loo17.yaml", s,
-                          Path(root) / "loo" / variant / slug / f"seed{s}", ov, variant, epochs,
-                          threads) for s in seeds]
-    return specs
-
-
-# --- report ----------------------------------------------------------------------------------
-
-
-def load_results(root: Path = RUNS) -> list[dict]:
-    """Every ``result.json`` below ``root``."""
-    return [json.loads(p.read_text()) for p in sorted(root.rglob("result.json"))]
-
-
-def _ms(values: list[float], fmt: str = "{:.3f}") -> str:
-    vals = [v for v in values if not (isinstance(v, float) and math.isnan(v))]
-    if not vals:
-        return "n/a"
-    if len(vals) == 1:
-        return fmt.format(vals[0])
-    return f"{fmt.format(statistics.mean(vals))} ± {fmt.format(statistics.stdev(vals))}"
-
-
-def _pct(values: list[float]) -> str:
-    vals = [100 * v for v in values if not math.isnan(v)]
-    if not vals:
-        return "n/a"
-    if len(vals) == 1:
-        return f"{vals[0]:.1f} %"
-    return f"{statistics.mean(vals):.1f} ± {statistics.stdev(vals):.1f} %"
-
-
-def loss_curve_png(metrics_csv: str | Path, out: str | Path, title: str) -> Path:
-    """Training loss terms (log scale) and the validation RA over the epochs of one run."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
-
-    with open(metrics_csv, newline="") as f:
-        rows = list(csv.DictReader(f))
-    fig, ax = plt.subplots(figsize=(7.6, 3.6))
-    for key, label in (("train/loss", "total"), ("train/topo", "topology BCE"),
-                       ("train/feat", "feature MSE"), ("train/type", "type CE"),
-                       ("train/kl", "KL"), ("train/kl_nodes", "node KL")):
-        pts = [(int(r["epoch"]), float(r[key])) for r in rows if r.get(key)]
-        if pts:
-            ax.plot(*zip(*pts), label=label, lw=1)
-    ax.set_yscale("log")
-    ax.set_xlabel("epoch")
-    ax.set_ylabel("per-robot loss (train)")
-    handles = ax.get_legend_handles_labels()[0]
-    ra = [(int(r["epoch"]), float(r["val/RA"])) for r in rows if r.get("val/RA")]
-    if ra:
-        ax2 = ax.twinx()
-        handles += ax2.plot(*zip(*ra), "k.--", label="val RA", lw=0.8)
-        ax2.set_ylim(0, 1.05)
-        ax2.set_ylabel("val RA")
-    # one legend, outside the axes: it never hides a curve
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.1, 1.0), fontsize=7)
-    ax.set_title(title, fontsize=9)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    return out
-
-
-def _group(results: list[dict], **match) -> list[dict]:
-    return [r for r in results if all(r.get(k) == v for k, v in match.items())]
-
-
-def experiments_table(results: list[dict], variant: str = "default") -> str:
-    """Markdown table: one row per experiment, the paper's number beside ours (mean ±
-    spread over seeds)."""
-    lines = ["| experiment | paper | RA | RA_true | exact | FRE | seeds | epochs | fit wall (s) "
-             "| load | command |", "|---" * 11 + "|"]
-    for name, e in EXPERIMENTS.items():
-        rs = sorted(_group(results, experiment=name, variant=variant), key=lambda r: r["seed"])
-        if not rs:
-            continue
-        s = [r["summary"] for r in rs]
-        seeds = ",".join(str(r["seed"]) for r in rs)
-        lines.append(
-            f"| {e.title} | {e.paper} | {_pct([x['ra'] for x in s])} | "
-            f"{_pct([x['ra_true'] for x in s])} | {_pct([x['exact'] for x in s])} | "
-            f"{_ms([x['fre'] for x in s], '{:.2g}')} | {seeds} | {rs[0]['epochs']} | "
-            f"{_ms([r['fit_s'] for r in rs], '{:.0f}')} | "
-            f"{_ms([r['load_fit_start'] for r in rs], '{:.1f}')} | "
-            f"`python -m robovae.evaluate.experiments run {name} --seeds {seeds}` |")
-    return "\n".join(lines)
-
-
-def per_robot_table(results: list[dict], experiment: str, variant: str = "default") -> str:
-    """Markdown table: RA / RA_true / exact / FRE of every test robot of one experiment."""
-    rs = _group(results, experiment=experiment, variant=variant)
-    names: dict[str, list[dict]] = {}
-    for r in rs:
-        for t in r["test"]:
-            names.setdefault(t["name"], []).append(t)
-    lines = ["| robot | nodes | RA | RA_true | exact | FRE |", "|---" * 6 + "|"]
-    for n, ts in names.items():
-        lines.append(f"| {n} | {ts[0]['n_true']} | {_pct([t['ra'] for t in ts])} | "
-                     f"{_pct([t['ra_true'] for t in ts])} | "
-                     f"{_pct([float(t['exact']) for t in ts])} | "
-                     f"{_ms([t['fre'] for t in ts], '{:.2g}')} |")
-    return "\n".join(lines)
-
-
-def last_logged(metrics_csv: str | Path, key: str) -> float:
-    """The last value of ``key`` in a run's CSV log (``nan`` when the file or key is absent)."""
-    path = Path(metrics_csv)
-    if not path.is_file():
-        return math.nan
-    with path.open() as f:
-        values = [row[key] for row in csv.DictReader(f) if row.get(key)]
-    return float(values[-1]) if values else math.nan
-
-
-def loo_table(results: list[dict], variant: str = "default") -> str:
-    """Markdown table of the leave-one-out runs: one row per held-out robot."""
-    rs = _group(results, experiment="loo", variant=variant)
-    by: dict[str, list[dict]] = {}
-    for r in rs:
-        t = r["test"][0]
-        by.setdefault(t["name"], []).append({**t, "seed": r["seed"], "fit_s": r["fit_s"]})
-    lines = ["| held-out robot | nodes | RA | RA_true | exact | FRE | decoded nodes (per seed) |",
-             "|---" * 7 + "|"]
-    for n in MENAGERIE17:
-        ts = sorted(by.get(n, []), key=lambda t: t["seed"])
-        if not ts:
-            continue
-        lines.append(f"| {n} | {ts[0]['n_true']} | {_pct([t['ra'] for t in ts])} | "
-                     f"{_pct([t['ra_true'] for t in ts])} | "
-                     f"{_pct([float(t['exact']) for t in ts])} | "
-                     f"{_ms([t['fre'] for t in ts], '{:.2g}')} | "
-                     f"{', '.join(str(t['n_pred']) for t in ts)} |")
-    seeds = sorted({r["seed"] for r in rs})
-    per_seed = [[r["test"][0] for r in rs if r["seed"] == s] for s in seeds]
-    if per_seed:
-        lines.append(f"| **mean over robots** | | "
-                     f"{_pct([statistics.mean(t['ra'] for t in p) for p in per_seed])} | "
-                     f"{_pct([statistics.mean(t['ra_true'] for t in p) for p in per_seed])} | "
-                     f"{_pct([statistics.mean(float(t['exact']) for t in p) for p in per_seed])}"
-                     f" | {_ms([statistics.mean(t['fre'] for t in p) for p in per_seed], '{:.2g}')}"
-                     f" | seeds {','.join(map(str, seeds))} (± over seeds) |")
-    return "\n".join(lines)
-
-
-#: the leave-one-out variants shown side by side in docs/results.md
-LOO_COMPARE = ("paper", "previous", "default")
-
-
-def loo_compare_table(results: list[dict], variants: Sequence[str] = LOO_COMPARE) -> str:
-    """Markdown table of the leave-one-out runs, the variants side by side: RA, RA_true, the
-    held-out robot's teacher-forced topology loss at the end of training (``val/topo`` of the
-    run's log: the sum of the expansion BCE over its decisions, ``z = mu``, in nats) and the
-    decoded node count per held-out robot (mean ± spread over the seeds that every variant has
-    runs of), for the robots that every variant has run with all those seeds, and their mean.
-
-    The topology loss is the smooth counterpart of RA: greedy decoding turns one wrong decision
-    into a wrong subtree, while the loss says how far the model is from the right tree."""
-    runs: dict[str, dict[str, dict[int, dict]]] = {}
-    for v in variants:
-        for r in _group(results, experiment="loo", variant=v):
-            t = {**r["test"][0], "topo": last_logged(r.get("metrics_csv", ""), "val/topo")}
-            runs.setdefault(v, {}).setdefault(t["name"], {})[r["seed"]] = t
-    variants = [v for v in variants if v in runs]
-    seeds = sorted(set.intersection(*({s for ts in runs[v].values() for s in ts}
-                                        for v in variants))) if variants else []
-    both = [n for n in MENAGERIE17
-            if all(n in runs[v] and set(seeds) <= set(runs[v][n]) for v in variants)]
-    head = ["held-out robot", "nodes", *(f"RA {v}" for v in variants),
-            *(f"RA_true {v}" for v in variants), *(f"topology loss {v}" for v in variants),
-            "decoded nodes (" + " / ".join(variants) + ")"]
-    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
-    if not seeds:
-        return "\n".join(lines)
-
-    def cell(key: str, v: str, names: list[str]) -> str:  # per seed: mean over the robots
-        per_seed = [statistics.mean(runs[v][n][s][key] for n in names) for s in seeds]
-        return _ms(per_seed, "{:.1f}") if key == "topo" else _pct(per_seed)
-
-    def cells(names: list[str]) -> str:
-        return " | ".join(cell(k, v, names) for k in ("ra", "ra_true", "topo") for v in variants)
-
-    for n in both:
-        lines.append(f"| {n} | {runs[variants[0]][n][seeds[0]]['n_true']} | {cells([n])} | "
-                     + " / ".join(",".join(str(runs[v][n][s]["n_pred"]) for s in seeds)
-                                  for v in variants) + " |")
-    if both:
-        lines.append(f"| **mean over {len(both)} robots** | | {cells(both)}"
-                     f" | seeds {','.join(map(str, seeds))} (± over seeds) |")
-    return "\n".join(lines)
-
-
-#: the six robots that the leave-one-out of the models on the way to node latents got wrong
-#: (docs/results.md): the ablation's leave-one-out for the cheaper variants runs on these alone
-LOO_HARD = ("cassie", "N1", "talos", "tiago", "tiago_dual", "z1")
-
-
-def _loo_cell(tests: list[dict]) -> str:
-    """``mean RA / exact k of n`` over held-out robots (``n/a`` without runs)."""
-    if not tests:
-        return "n/a"
-    exact = sum(bool(t["exact"]) for t in tests)
-    return f"{_pct([statistics.mean(t['ra'] for t in tests)])} / {exact} of {len(tests)}"
-
-
-def ablation_table(results: list[dict]) -> str:
-    """Markdown table: one row per ablation variant: unseen Go2 from 2 and 4 robots (RA /
-    exact / FRE, mean ± spread over the seeds that ran) and the leave-one-out of the lowest seed
-    that ran, over all 17 robots (when every robot ran) and over :data:`LOO_HARD`."""
-    lines = ["| variant | change | 2 robots -> Go2: RA / exact / FRE | "
-             "4 robots -> Go2: RA / exact / FRE | LOO, 17 robots: mean RA / exact | "
-             f"LOO, {len(LOO_HARD)} hard robots: mean RA / exact |", "|---" * 6 + "|"]
-    for v, (desc, _) in ABLATIONS.items():
-        cells = []
-        for exp in ("menagerie2", "menagerie4"):
-            s = [r["summary"] for r in _group(results, experiment=exp, variant=v)]
-            cells.append(" / ".join([_pct([x["ra"] for x in s]), _pct([x["exact"] for x in s]),
-                                     _ms([x["fre"] for x in s], "{:.2g}")]) if s else "n/a")
-        rs = _group(results, experiment="loo", variant=v)
-        seed = min((r["seed"] for r in rs), default=0)
-        tests = {r["test"][0]["name"]: r["test"][0] for r in rs if r["seed"] == seed}
-        full = [tests[n] for n in MENAGERIE17 if n in tests]
-        cells.append(_loo_cell(full if len(full) == len(MENAGERIE17) else []))
-        cells.append(_loo_cell([tests[n] for n in LOO_HARD if n in tests]))
-        lines.append(f"| {v} | {desc} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def decoded_size_table(results: list[dict], experiment: str = "menagerie4") -> str:
-    """Markdown table: per ablation variant, the nodes of the test robot's greedy reconstruction
-    in every seed of ``experiment`` against its true size, with RA, RA_true and FRE. A decoded
-    tree larger than the true one is the paper's "extra limb" (RA_true stays high, RA drops)."""
-    lines = ["| variant | true nodes | decoded nodes (per seed) | RA | RA_true | FRE |",
-             "|---" * 6 + "|"]
-    for v in ABLATIONS:
-        rs = sorted(_group(results, experiment=experiment, variant=v), key=lambda r: r["seed"])
-        ts = [r["test"][0] for r in rs]
-        if not ts:
-            continue
-        lines.append(f"| {v} | {ts[0]['n_true']} | "
-                     f"{', '.join(str(t['n_pred']) for t in ts)} | "
-                     f"{_pct([t['ra'] for t in ts])} | {_pct([t['ra_true'] for t in ts])} | "
-                     f"{_ms([t['fre'] for t in ts], '{:.2g}')} |")
-    return "\n".join(lines)
-
-
-def _replace_block(text: str, key: str, body: str) -> str:
-    start, end = f"<!-- auto:{key} -->", f"<!-- /auto:{key} -->"
-    if start not in text:
-        return text
-    head, rest = text.split(start, 1)
-    _, tail = rest.split(end, 1)
-    return f"{head}{start}\n{body}\n{end}{tail}"
-
-
-def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
-    """Fill the ``<!-- auto:... -->`` blocks of ``docs/results.md`` from the runs under ``root``
-    and draw one loss-curve PNG per experiment (its lowest seed) into ``docs/img``."""
-    results = load_results(root)
-    for name, e in EXPERIMENTS.items():
-        rs = sorted(_group(results, experiment=name, variant="default"), key=lambda r: r["seed"])
-        if rs and Path(rs[0]["metrics_csv"]).is_file():
-            loss_curve_png(rs[0]["metrics_csv"], DOCS / "img" / f"loss_{name}.png",
-                           f"{e.title}, seed {rs[0]['seed']}")
-    text = doc.read_text()
-    text = _replace_block(text, "experiments", experiments_table(results))
-    text = _replace_block(text, "menagerie17", per_robot_table(results, "menagerie17"))
-    text = _replace_block(text, "loo", loo_table(results))
-    text = _replace_block(text, "loo_compare", loo_compare_table(results, LOO_COMPARE))
-    text = _replace_block(text, "ablation", ablation_table(results))
-    text = _replace_block(text, "extra_limb", decoded_size_table(results, "menagerie4"))
-    doc.write_text(text)
-    print(f"wrote {doc}")
-
-
-# --- command line ----------------------------------------------------------------------------
+from robovae.evaluate.experiment_runner import (  # noqa: F401  (the runner's public names)
+    ABLATIONS,
+    DOCS,
+    EXPERIMENTS,
+    MENAGERIE17,
+    RUNS,
+    Experiment,
+    FitTimer,
+    RunSpec,
+    experiment_specs,
+    loo_specs,
+    run_all,
+    run_one,
+)
+from robovae.evaluate.experiment_tables import (  # noqa: F401  (the tables' public names)
+    experiments_table,
+    load_results,
+    loo_table,
+    loss_curve_png,
+    per_robot_table,
+    report,
+)
 
 
 def _seeds(s: str) -> list[int]:
@@ -579,11 +100,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ex = {"epochs": args.epochs, "threads": args.threads, "root": root}
     if args.cmd == "run":
         extra = [*ABLATIONS.get(args.variant, ("", ()))[1], *args.overrides]
-        _run_all(experiment_specs(args.experiment, args.seeds, args.variant, extra, **ex),
+        run_all(experiment_specs(args.experiment, args.seeds, args.variant, extra, **ex),
                  args.jobs, redo)
     elif args.cmd == "loo":
         extra = [*ABLATIONS.get(args.variant, ("", ()))[1], *args.overrides]
-        _run_all(loo_specs(args.seeds, args.robots.split(","), args.variant, extra, **ex),
+        run_all(loo_specs(args.seeds, args.robots.split(","), args.variant, extra, **ex),
                  args.jobs, redo)
     elif args.cmd == "ablation":
         names = args.only.split(",") if args.only else list(ABLATIONS)
@@ -594,7 +115,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 specs += experiment_specs(exp, args.seeds, v, ov, **ex)
             if args.loo:
                 specs += loo_specs(args.seeds, variant=v, extra=ov, **ex)
-        _run_all(specs, args.jobs, redo)
+        run_all(specs, args.jobs, redo)
     elif args.cmd == "all":
         specs = []
         for name in EXPERIMENTS:
@@ -607,7 +128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 for exp in ("menagerie2", "menagerie4"):
                     specs += experiment_specs(exp, args.seeds, v, list(ov), **ex)
                 specs += loo_specs(args.seeds[:1], variant=v, extra=list(ov), **ex)
-        _run_all(specs, args.jobs, redo)
+        run_all(specs, args.jobs, redo)
         report(root=root)
     return 0
 

@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-import numpy as np
 import torch
 
 from robovae.data.graph import RobotData
@@ -39,6 +38,7 @@ from robovae.generate.symmetry import mirror_limbs
 from robovae.generate.validate import validate_robot
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
+from robovae.model.prior import latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import RoboVAE
 
 MANIFEST = "manifest.jsonl"
@@ -101,36 +101,6 @@ def _atomic_json(path: Path, obj: dict) -> None:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(obj, indent=1))
     os.replace(tmp, path)
-
-
-def latent(seed: int, index: int, dim: int, temperature: float = 1.0) -> torch.Tensor:
-    """The latent of robot ``index`` of a run with ``seed``: ``N(0, T² I)`` from its own
-    generator (NumPy PCG64 seeded by the pair ``(seed, index)``: no two robots share one)."""
-    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, index])))
-    return torch.from_numpy(rng.standard_normal(dim).astype(np.float32)) * temperature
-
-
-def node_noise(seed: int, index: int, max_nodes: int, dim: int,
-               temperature: float = 1.0) -> torch.Tensor:
-    """The node-latent noise of robot ``index`` (models with node latents): ``[max_nodes, dim]``
-    standard normals times ``T`` from the robot's own second stream (``(seed, index, 1)``), so
-    its node ``t`` draws ``w_t = mu^p + sigma^p eps_t`` whatever the batch."""
-    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, index, 1])))
-    eps = rng.standard_normal((max_nodes, dim)).astype(np.float32)
-    return torch.from_numpy(eps) * temperature
-
-
-def prior_latents(model: RoboVAE, seed: int, indices: Sequence[int],
-                  temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """``(z, node_noise)`` of robots ``indices``: :func:`latent` and, for a model with node
-    latents, :func:`node_noise` (``None`` otherwise), in the model's dtype; the two arguments of
-    :meth:`RoboVAE.decode <robovae.model.vae.RoboVAE.decode>` for ancestral sampling."""
-    hp = model.hparams
-    z = torch.stack([latent(seed, int(i), hp.latent_dim, temperature) for i in indices])
-    dw = hp.get("node_latent_dim", 0)
-    noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, dw, temperature)
-                         for i in indices]).to(model.dtype) if dw else None
-    return z.to(model.dtype), noise
 
 
 def read_manifest(out: Path) -> dict[int, dict]:
@@ -246,9 +216,9 @@ def generate(
     with _open_manifest(out / MANIFEST) as manifest, \
             (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
         for chunk in _chunks(todo, batch_size):
-            z, noise = prior_latents(model, seed, chunk, temperature)
+            z, noise = model.sample_prior(seed, chunk, temperature)
             if node_temperature is not None:
-                noise = prior_latents(model, seed, chunk, node_temperature)[1]
+                noise = model.sample_prior(seed, chunk, node_temperature)[1]
             records = write_records(model, chunk, z, model.decode(z, node_noise=noise), out,
                                     seed=seed,
                                     temperature=temperature, validate=validate, jobs=jobs,

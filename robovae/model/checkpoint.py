@@ -63,17 +63,57 @@ def read_checkpoint(path: str | Path) -> dict:
     return ckpt
 
 
-def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> RoboVAE:
-    """A :class:`RoboVAE` in eval mode from a Lightning checkpoint (``weights_only`` loading).
+#: hyperparameters of earlier versions: the value the current model has built in (a checkpoint
+#: with another value holds a removed model variant), or ``None`` for training-only settings
+#: that moved to the datamodule (``data:``) and do not change the weights
+RETIRED_HPARAMS: dict[str, object] = {
+    "topo_context": True, "node_structure": True, "local_heads": True, "latent_inputs": False,
+    "decoder_inputs": "types", "augment_until": None, "feature_shift": None,
+    "feature_noise": None, "tree_surgery": None, "surgery_ops": None,
+}
+
+
+def current_hparams(hparams: dict, path: str | Path | None = None) -> dict:
+    """The constructor arguments of :class:`RoboVAE` from a checkpoint's hyperparameters,
+    written by this version or an earlier one: retired settings (:data:`RETIRED_HPARAMS`) are
+    dropped when the model they describe is the current one.
 
     Raises:
-        RobovaeError: missing file, or a checkpoint that is not plain weights + settings.
+        RobovaeError: (one line) the checkpoint holds a model variant this version no longer
+            has (e.g. ``local_heads=False`` or no node latents); it says how to retrain.
+    """
+    hp = dict(hparams)
+    bad = [f"{k}={hp[k]!r}" for k, v in RETIRED_HPARAMS.items()
+           if v is not None and k in hp and hp[k] != v]
+    if "node_latent_dim" in hp and int(hp["node_latent_dim"]) < 1:
+        bad.append(f"node_latent_dim={hp['node_latent_dim']!r}")
+    if bad:
+        where = f" {path}:" if path is not None else ""
+        raise RobovaeError(f"robovae:{where} a checkpoint of a model variant that was removed "
+                           f"({', '.join(bad)}); retrain it with the current configs, e.g. "
+                           "`robovae fit --config configs/zoo.yaml`")
+    # (``_instantiator`` and other ``_`` keys: Lightning CLI bookkeeping, not arguments)
+    return {k: v for k, v in hp.items() if k not in RETIRED_HPARAMS and not k.startswith("_")}
+
+
+def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> RoboVAE:
+    """A :class:`RoboVAE` in eval mode from a Lightning checkpoint (``weights_only`` loading),
+    also from a checkpoint of an earlier version whose model is the current one
+    (:func:`current_hparams`).
+
+    Raises:
+        RobovaeError: missing file, a checkpoint that is not plain weights + settings, or one of
+            a removed model variant (one line each).
     """
     path = Path(path)
-    if "state_dict" not in read_checkpoint(path):  # the same one-line refusals everywhere
+    ckpt = read_checkpoint(path)  # the same one-line refusals everywhere
+    if "state_dict" not in ckpt:
         raise RobovaeError(f"robovae: {path}: not a Lightning checkpoint (no state_dict)")
+    hp = current_hparams(ckpt.get("hyper_parameters", {}), path)
     try:
-        model = RoboVAE.load_from_checkpoint(path, map_location=map_location, weights_only=True)
+        model = RoboVAE(**hp)
+        model.load_state_dict(ckpt["state_dict"])
+        model.on_load_checkpoint(ckpt)
     except Exception as e:  # weights of another model (shapes, names), bad hyperparameters
         raise refusal(path, e) from None
-    return model.eval()
+    return model.to(map_location).eval()

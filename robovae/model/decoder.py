@@ -1,67 +1,44 @@
-"""Depth-first tree decoder (paper §4.3, eq. 9–11): teacher forcing and batched greedy decoding.
+"""Depth-first tree decoder (paper §4.3, eq. 9–11, with per-node latents): teacher forcing
+and batched greedy decoding.
 
-The decoder walks a tree depth-first, like JT-VAE's DFS trace. With ``x^p = W^p x`` (own weights)
-and its own :class:`~robovae.model.tree.TreeGRUCell`:
+The decoder walks a tree depth-first, like JT-VAE's DFS trace. Node ``i`` is read as its
+one-hot type ``e_i``, ``x_i^p = W^p e_i``, and its own :class:`~robovae.model.tree.TreeGRUCell`
+passes messages:
 
 - up message (sent when the walk backtracks from ``c``):
   ``h_{c->p} = GRU(x_c^p, {h_{k->c}}_{k child of c})``;
 - down message (sent when ``p`` expands into ``c``):
   ``h_{p->c} = GRU(x_p^p, {h_{parent(p)->p}} + {h_{k->p}}_{k earlier sibling of c})``.
 
-A node with ``K`` children makes ``K + 1`` topology decisions (eq. 9): on arrival and after
-returning from each child; the first ``K`` are "expand" (1), the last "backtrack" (0):
+Every node ``c`` carries a latent ``w_c`` (``node_latent_dim`` wide; its posterior comes from
+:class:`~robovae.model.encoder.TreeEncoder`). A node with ``K`` children makes ``K + 1``
+topology decisions: on arrival and after returning from each child; the first ``K`` are
+"expand" (1), the last "backtrack" (0). With ``k`` the children made so far and ``d_i`` the
+depth, a decision and a node's type read only the node's own latent and that context:
 
-.. math:: p_t = \\sigma(u^c \\cdot \\tau(W_1^c x_i + W_2^c z + W_3^c \\sum_k h_{k,i}
-          [+ E_{depth}(d_i) + E_{count}(n_i)]))
+.. math::
+    p_t = \\sigma(u \\cdot \\mathrm{ReLU}(W_4 w_i + b + E_{depth}(d_i) + E_{count}(k) + k\\,c)),
+    \\qquad s_c = V^c w_c + b^c
 
-where the sum runs over the messages received so far. The bracket (``topo_context=True``) adds
-embeddings of the node's depth and of its number of children generated so far (both clamped): the
-paper's §5 failure mode ("a node on the root always expands into a full limb") is a topology
-head that cannot tell where it is; ``topo_context=False`` is exactly eq. 9.
+(embeddings clamped at ``max_depth_embed`` / ``max_children_embed``; the linear ``k c`` lets
+counts beyond the embedded ones extrapolate). Features (eq. 10, with a linear path from the
+node latent, so a value outside the training range moves the output linearly):
 
-**Decoder inputs** (``inputs``): with ``"features"`` (the paper), ``x_i`` above and the GRU inputs
-``x^p`` are the node features: the true ones under teacher forcing, the decoder's own predictions
-when decoding, so a feature error can flip a later topology decision (exposure bias), and an
-unseen robot's unfamiliar feature values reach every decision. With ``"types"``, ``x_i`` is the
-one-hot node type: the messages then carry the tree built so far (types, depths, sibling order)
-and ``z`` alone carries the robot; teacher forcing and decoding see identical inputs whenever the
-types are right. Features are predicted the same way (eq. 10) in both modes.
+.. math::
+    a = \\mathrm{ReLU}(W_1^l z + W_2^l h_{p \\to c} + W_3^l w_c), \\qquad
+    f_c = U^l a + V^l w_c
 
-**Latent inputs** (``latent_inputs=True``, beyond the paper): in eq. 9–11 ``z`` reaches only the
-heads, so the messages describe the tree built so far without knowing which robot is being built,
-and a one-hidden-layer head must look the next decision up from ``(z, messages)``. With latent
-inputs, every node's GRU input becomes ``x_i^p = W^p x_i + W^{zx} z`` (like the latent fed to
-every step of an RNN decoder): the messages themselves are conditioned on the robot.
-
-Each generated node ``c`` gets (eq. 10–11) ``a = ReLU(W_1^l z + W_2^l h_{p->c})``,
-features ``f_c = U^l a`` and type logits ``U^c a`` (a categorical head over ``num_types``; absent
-when there is a single type). The **root** has no parent message: it is predicted from ``z``
-alone (``h = 0``).
-
-**Node latents** (``node_latent_dim > 0``, beyond the paper): node ``c`` carries a local latent
-``w_c`` (:class:`~robovae.model.encoder.TreeEncoder` gives its posterior, which knows the node's
-type and number of children). It enters the heads of the node itself: eq. 10–11 become
-``a = ReLU(W_1^l z + W_2^l h_{p->c} + W_3^l w_c)``, ``f_c = U^l a + V^l w_c``,
-``s_c = U^c a + V^c w_c`` (the linear paths let a value outside the training range move the
-reconstruction linearly instead of saturating a ReLU), and eq. 9 gets ``+ W_4^c w_i`` for the
-decisions taken at node ``i``. With **local heads** (``local_heads=True``) a node's type and its
-expand/backtrack decisions read *only* its own latent and the depth/child-count context:
-
-.. math:: s_c = V^c w_c + b^c, \\qquad
-          p_t = \\sigma(u^c \\cdot \\tau(W_4^c w_i + b + E_{depth}(d_i) + E_{count}(k) + k\\,c))
-
-so that what a node *is* can never be overruled by what its context usually implies (a welded
-link under a link, a base with more limbs than any training robot): the structure of an unseen
-robot is then decoded from its node latents alone. The context still shapes generation, through
-the learned conditional prior of the node latents (a sequential VAE's):
+(the root has ``h = 0``). For generation the node latents have a learned conditional prior
+(a sequential VAE's):
 
 .. math:: p(w_c \\mid z, h_{p \\to c}, w_p) = \\mathcal N(\\mu^p, \\mathrm{diag}\\, e^{\\lambda^p}),
-          \\quad [\\mu^p, \\lambda^p] = U^p \\tau(W_1^p z + W_2^p h_{p \\to c} + W_3^p w_p)
+          \\quad [\\mu^p, \\lambda^p] = U^p \\mathrm{ReLU}(W_1^p z + W_2^p h_{p \\to c} + W_3^p w_p)
 
 (``w_p = 0``, ``h = 0`` at the root; ``lambda^p`` soft-clamped to ``(-10, 10)``). The messages
-do not read ``w``, so the encoder's and the decoder's level passes still run stacked.
+read neither ``z`` nor ``w``, so the encoder's and the decoder's level passes run stacked.
 Reconstruction feeds the encoder's ``w`` in pre-order; generation draws every new node's ``w``
-from this prior (ancestral sampling with the caller's noise, or its mean without).
+from the prior (ancestral sampling with the caller's noise, or its mean without). Why each part
+is there: ``docs/results.md`` (ablation).
 """
 
 from __future__ import annotations
@@ -74,17 +51,8 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
-from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
-
-#: what the decoder reads of each node (:class:`TreeDecoder` ``inputs``)
-INPUT_MODES = ("features", "types")
-
-
-def soft_clamp(logvar: Tensor, bound: float = 10.0) -> Tensor:
-    """``bound * tanh(logvar / bound)``: a node latent's log-variance kept inside
-    ``(-bound, bound)`` smoothly, so that neither ``e^{lambda^q}`` nor ``e^{-lambda^p}`` in the node
-    KL can overflow (a run once spiked to a loss of 1e20 without it)."""
-    return bound * torch.tanh(logvar / bound)
+from robovae.model.messages import level_messages
+from robovae.model.tree import TreeGRUCell, TreeSchedule, soft_clamp, tree_schedule
 
 
 @dataclass
@@ -113,49 +81,25 @@ class DecoderOutput:
 
 
 class TopoHead(nn.Module):
-    """Expansion logit (eq. 9), optionally with depth / child-count context and the deciding
-    node's latent; ``local`` keeps only the latent and the context embeddings (no ``x``, ``z``
-    or messages: module docstring of :mod:`robovae.model.decoder`)."""
+    """Expansion logit of a decision from the deciding node's latent, its depth and its number
+    of children so far (module docstring)."""
 
-    def __init__(self, feat_dim: int, hidden_dim: int, latent_dim: int, context: bool,
-                 max_depth_embed: int, max_children_embed: int, node_latent_dim: int = 0,
-                 local: bool = False) -> None:
+    def __init__(self, hidden_dim: int, node_latent_dim: int, max_depth_embed: int,
+                 max_children_embed: int) -> None:
         super().__init__()
-        if local and not (node_latent_dim and context):
-            raise ValueError("local heads need node latents and the depth/count context")
-        self.local = local
-        if not local:
-            self.W1 = nn.Linear(feat_dim, hidden_dim)
-            self.W2 = nn.Linear(latent_dim, hidden_dim, bias=False)
-            self.W3 = nn.Linear(hidden_dim, hidden_dim, bias=False)
-        self.W4 = nn.Linear(node_latent_dim, hidden_dim, bias=local) if node_latent_dim \
-            else None
+        self.W4 = nn.Linear(node_latent_dim, hidden_dim)
         self.u = nn.Linear(hidden_dim, 1)
-        self.context = context
-        if context:
-            self.depth_emb = nn.Embedding(max_depth_embed + 1, hidden_dim)
-            self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
-        # local heads: the count also enters linearly, so that "expand while k < K_i" holds
-        # for counts beyond the training robots' (see TreeEncoder's node latents)
-        self.count_vec = nn.Parameter(torch.zeros(hidden_dim)) if local else None
+        self.depth_emb = nn.Embedding(max_depth_embed + 1, hidden_dim)
+        self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
+        self.count_vec = nn.Parameter(torch.zeros(hidden_dim))
 
-    def zterm(self, z: Tensor) -> Tensor | None:
-        """``W2 z`` per latent (``None`` for a local head)."""
-        return None if self.local else self.W2(z)
-
-    def forward(self, x: Tensor | None, zw: Tensor | None, inward: Tensor | None, depth: Tensor,
-                count: Tensor, w: Tensor | None = None) -> Tensor:
-        """Logits ``[M]``; ``zw`` is :meth:`zterm` already gathered per decision, ``w`` the
-        deciding nodes' latents (with node latents). A local head ignores ``x``, ``zw`` and
-        ``inward``."""
-        a = self.W4(w) if self.local else self.W1(x) + zw + self.W3(inward)
-        if self.W4 is not None and not self.local:
-            a = a + self.W4(w)
-        if self.context:
-            a = a + self.depth_emb(depth.clamp_max(self.depth_emb.num_embeddings - 1))
-            a = a + self.count_emb(count.clamp_max(self.count_emb.num_embeddings - 1))
-        if self.count_vec is not None:
-            a = a + count[:, None].to(a.dtype) * self.count_vec
+    def forward(self, w: Tensor, depth: Tensor, count: Tensor) -> Tensor:
+        """Logits ``[M]`` of ``M`` decisions: deciding nodes' latents ``w`` ``[M, dw]``, depths
+        and child counts so far ``[M]``."""
+        a = self.W4(w)
+        a = a + self.depth_emb(depth.clamp_max(self.depth_emb.num_embeddings - 1))
+        a = a + self.count_emb(count.clamp_max(self.count_emb.num_embeddings - 1))
+        a = a + count[:, None].to(a.dtype) * self.count_vec
         return self.u(torch.relu(a)).squeeze(-1)
 
 
@@ -195,76 +139,53 @@ class TreeDecoder(nn.Module):
         feat_dim: feature width ``d`` (normalised units).
         num_types: number of node types.
         hidden_dim: message / hidden width ``H``.
-        latent_dim: latent width.
-        topo_context: add depth and child-count embeddings to the topology head.
+        latent_dim: width of ``z``.
+        node_latent_dim: width of the node latents ``w`` (at least 1).
         type_mask: optional ``[num_types, d]`` bool (``FeatureSet.type_mask()``): decoded nodes
-            get zeros outside their type's columns, as real inputs have, so that decoding sees
-            what teacher forcing saw. Default: every column belongs to every type.
+            get zeros outside their type's columns, as real inputs have. Default: every column
+            belongs to every type.
         max_depth_embed: depths above this share the last depth embedding.
         max_children_embed: child counts above this share the last count embedding.
-        inputs: ``"features"`` (eq. 9–10 as published) or ``"types"`` (module docstring).
-        latent_inputs: add ``W^{zx} z`` to every node's GRU input (module docstring).
-        node_latent_dim: width of the node latents ``w`` (0: none; module docstring).
-        local_heads: with node latents, the type and the topology decisions of a node read
-            only its latent (and the child-count/depth context), not ``z`` or the messages.
+
+    Raises:
+        ValueError: ``node_latent_dim < 1``.
     """
 
     def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
-                 topo_context: bool = True, type_mask: Tensor | None = None,
-                 max_depth_embed: int = 32, max_children_embed: int = 16,
-                 inputs: str = "features", latent_inputs: bool = False,
-                 node_latent_dim: int = 0, local_heads: bool = False) -> None:
+                 node_latent_dim: int, type_mask: Tensor | None = None,
+                 max_depth_embed: int = 32, max_children_embed: int = 16) -> None:
         super().__init__()
-        if inputs not in INPUT_MODES:
-            raise ValueError(f"decoder inputs must be one of {INPUT_MODES}, got {inputs!r}")
+        if node_latent_dim < 1:
+            raise ValueError(f"the decoder needs node latents (node_latent_dim >= 1), "
+                             f"got {node_latent_dim}")
         self.feat_dim, self.num_types, self.hidden_dim = feat_dim, num_types, hidden_dim
-        self.inputs = inputs
-        in_dim = feat_dim if inputs == "features" else num_types
-        self.proj = nn.Linear(in_dim, hidden_dim, bias=False)
-        self.zin = nn.Linear(latent_dim, hidden_dim, bias=False) if latent_inputs else None
+        self.node_latent_dim = node_latent_dim
+        self.proj = nn.Linear(num_types, hidden_dim, bias=False)
         self.cell = TreeGRUCell(hidden_dim)
-        self.topo = TopoHead(in_dim, hidden_dim, latent_dim, topo_context, max_depth_embed,
-                             max_children_embed, node_latent_dim, local_heads)
-        self.local_heads = local_heads
+        self.topo = TopoHead(hidden_dim, node_latent_dim, max_depth_embed, max_children_embed)
         self.W1_l = nn.Linear(latent_dim, hidden_dim)
         self.W2_l = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        self.W3_l = nn.Linear(node_latent_dim, hidden_dim, bias=False)
         self.U_l = nn.Linear(hidden_dim, feat_dim)
-        self.U_c = nn.Linear(hidden_dim, num_types) if num_types > 1 and not local_heads \
-            else None
-        self.node_latent_dim = node_latent_dim
-        if node_latent_dim:
-            self.W3_l = nn.Linear(node_latent_dim, hidden_dim, bias=False)
-            self.V_l = nn.Linear(node_latent_dim, feat_dim, bias=False)
-            self.V_c = nn.Linear(node_latent_dim, num_types, bias=local_heads) \
-                if num_types > 1 else None
-            self.W1_p = nn.Linear(latent_dim, hidden_dim)
-            self.W2_p = nn.Linear(hidden_dim, hidden_dim, bias=False)
-            self.W3_p = nn.Linear(node_latent_dim, hidden_dim, bias=False)
-            self.U_p = nn.Linear(hidden_dim, 2 * node_latent_dim)
+        self.V_l = nn.Linear(node_latent_dim, feat_dim, bias=False)
+        self.V_c = nn.Linear(node_latent_dim, num_types) if num_types > 1 else None
+        self.W1_p = nn.Linear(latent_dim, hidden_dim)
+        self.W2_p = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        self.W3_p = nn.Linear(node_latent_dim, hidden_dim, bias=False)
+        self.U_p = nn.Linear(hidden_dim, 2 * node_latent_dim)
         mask = torch.ones(num_types, feat_dim, dtype=torch.bool) if type_mask is None else type_mask
         self.register_buffer("type_mask", mask.bool().clone(), persistent=False)
 
-    def node_inputs(self, x: Tensor, node_type: Tensor) -> Tensor:
-        """What the decoder reads of a node (``inputs``): its features, or its one-hot type."""
-        if self.inputs == "features":
-            return x
-        return F.one_hot(node_type, self.num_types).to(x.dtype)
+    def node_inputs(self, node_type: Tensor, dtype: torch.dtype) -> Tensor:
+        """What the decoder reads of a node: its one-hot type ``[N, num_types]``."""
+        return F.one_hot(node_type, self.num_types).to(dtype)
 
-    def node_heads(self, zl: Tensor, h: Tensor, w: Tensor | None = None) -> tuple[Tensor, Tensor]:
-        """eq. 10–11: ``(features, type logits)`` from ``zl = W_1^l z``, ``h = h_{p->c}`` and
-        (with node latents) the node's own latent ``w``."""
-        a = zl + self.W2_l(h)
-        if self.node_latent_dim:
-            a = a + self.W3_l(w)
-        a = torch.relu(a)
-        if self.num_types == 1:
-            types = a.new_zeros(a.shape[0], 1)
-        elif self.local_heads:
-            types = self.V_c(w)
-        else:
-            types = self.U_c(a) + self.V_c(w) if self.node_latent_dim else self.U_c(a)
-        feat = self.U_l(a) + self.V_l(w) if self.node_latent_dim else self.U_l(a)
-        return feat, types
+    def node_heads(self, zl: Tensor, h: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:
+        """``(features, type logits)`` of new nodes (module docstring) from ``zl = W_1^l z``,
+        their parent's message ``h`` and their latents ``w``."""
+        a = torch.relu(zl + self.W2_l(h) + self.W3_l(w))
+        types = a.new_zeros(a.shape[0], 1) if self.V_c is None else self.V_c(w)
+        return self.U_l(a) + self.V_l(w), types
 
     def node_prior(self, zp: Tensor, h: Tensor, w_parent: Tensor) -> tuple[Tensor, Tensor]:
         """``(mu^p, logvar^p)`` of the node latents' prior (module docstring) from
@@ -275,55 +196,36 @@ class TreeDecoder(nn.Module):
 
     # --- teacher forcing ----------------------------------------------------------------
 
-    def teacher_forcing(self, z: Tensor, batch: Data, sched: TreeSchedule | None = None,
-                        messages: tuple[Tensor, Tensor, Tensor] | None = None,
-                        w: Tensor | None = None) -> DecoderOutput:
-        """All predictions of the DFS trace of ``batch`` (normalised ``x``) given ``z`` ``[B, l]``
-        (and, with node latents, ``w`` ``[N, node_latent_dim]`` in node order).
+    def teacher_forcing(self, z: Tensor, batch: Data, w: Tensor,
+                        sched: TreeSchedule | None = None,
+                        messages: tuple[Tensor, Tensor, Tensor] | None = None) -> DecoderOutput:
+        """All predictions of the DFS trace of ``batch`` given ``z`` ``[B, latent_dim]`` and the
+        node latents ``w`` ``[N, node_latent_dim]`` (node order).
 
-        Messages are computed level by level (:func:`~robovae.model.tree.level_messages`), then
-        every decision of the batch in one call of the topology head. ``messages`` (``(down,
-        total, sdown)`` of this decoder's cell, level order, ``[N, H]`` each) skips the message
-        passes when they were already computed (e.g. together with the encoder's; not possible
-        with ``latent_inputs``, where the messages depend on ``z``).
+        Messages are computed level by level (:func:`~robovae.model.messages.level_messages`),
+        then every decision of the batch in one call of the topology head. ``messages``
+        (``(down, total, sdown)`` of this decoder's cell, level order, ``[N, H]`` each) skips
+        the message passes when they were already computed (together with the encoder's).
         """
-        if self.node_latent_dim and w is None:
-            raise ValueError("a decoder with node latents needs w for teacher forcing")
         sched = tree_schedule(batch) if sched is None else sched
-        xin = self.node_inputs(batch.x, batch.node_type)
         if messages is None:
-            px = self.project_levels(xin, sched, z)
+            px = self.project_levels(batch.node_type, sched, z.dtype)
             messages = tuple(t[0] for t in level_messages([self.cell], px[None], sched, 0))
-        down, total, sdown = messages
-        node, count, target, which, graph = decision_index(sched)
-        w = w if self.node_latent_dim else None
-        if self.topo.local:  # reads the deciding node's latent and context only
-            x_t = zw_t = inward_t = None
-        else:
-            x_t, zw_t = xin.index_select(0, node), self.topo.zterm(z).index_select(0, graph)
-            inward_t = torch.cat([sdown, total]).index_select(0, which)
-        logits = self.topo(x_t, zw_t, inward_t, sched.depth.index_select(0, node), count,
-                           None if w is None else w.index_select(0, node))
+        down, _, _ = messages
+        node, count, target, _, graph = decision_index(sched)
+        logits = self.topo(w.index_select(0, node), sched.depth.index_select(0, node), count)
         h = down.index_select(0, sched.inv)
         feat, types = self.node_heads(self.W1_l(z).index_select(0, sched.graph), h, w)
-        if w is None:
-            return DecoderOutput(logits, target, graph, node, feat, types)
         w_par = torch.where((sched.parent >= 0)[:, None],
                             w.index_select(0, sched.parent.clamp_min(0)), 0.0)
         pmu, plogvar = self.node_prior(self.W1_p(z).index_select(0, sched.graph), h, w_par)
         return DecoderOutput(logits, target, graph, node, feat, types, pmu, plogvar)
 
-    def project_levels(self, x: Tensor, sched: TreeSchedule, z: Tensor | None = None) -> Tensor:
-        """``cell.project(x^p)`` with the rows in level order, ``[N, 3H]``; ``x`` is the
-        :meth:`node_inputs` of the batch (node order), ``z`` (``[B, l]``) is required with
-        ``latent_inputs``."""
-        x = x.index_select(0, sched.order)
-        if self.zin is None:
-            return self.cell.project(x, self.proj.weight)
-        if z is None:
-            raise ValueError("a decoder with latent_inputs needs z to project its inputs")
-        zx = self.zin(z).index_select(0, sched.graph.index_select(0, sched.order))
-        return self.cell.project(self.proj(x) + zx)
+    def project_levels(self, node_type: Tensor, sched: TreeSchedule,
+                       dtype: torch.dtype) -> Tensor:
+        """``cell.project(x^p)`` of the nodes' one-hot types, rows in level order, ``[N, 3H]``."""
+        x = self.node_inputs(node_type.index_select(0, sched.order), dtype)
+        return self.cell.project(x, self.proj.weight)
 
     forward = teacher_forcing
 
@@ -341,7 +243,7 @@ class TreeDecoder(nn.Module):
         backtracks or it reaches ``max_nodes``. Each tree takes at most ``2 * max_nodes - 1``
         steps, so decoding always terminates. Node types are ``argmax`` of the type logits.
 
-        With node latents, the ``t``-th node created for latent ``b`` (pre-order) takes
+        The ``t``-th node created for latent ``b`` (pre-order) takes
         ``node_latents[b][t]`` when given (reconstruction: the encoder's node means), else a
         draw from its conditional prior, ``mu^p + sigma^p * node_noise[b, t]`` (ancestral
         sampling; ``node_noise`` is ``[B, >= max_nodes, node_latent_dim]``, already scaled by
@@ -364,15 +266,14 @@ class TreeDecoder(nn.Module):
         b, dev, hid = z.shape[0], z.device, self.hidden_dim
         buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, self.node_latent_dim,
                           z.dtype, dev)
-        zl, zt = self.W1_l(z), self.topo.zterm(z)
-        zx = self.zin(z) if self.zin is not None else None
+        zl = self.W1_l(z)
         lat = torch.arange(b, device=dev)
         wsrc = _NodeLatents(self, z, node_latents, node_noise, max_nodes)
         h0 = z.new_zeros(b, hid)
         w = wsrc.take(lat, torch.zeros_like(lat), h0, z.new_zeros(b, self.node_latent_dim))
         feat, types = self._new_nodes(zl, h0, w)
         cur = buf.add(lat, torch.full_like(lat, -1), torch.zeros_like(lat), types, feat,
-                      self._px(feat, types, zx), h0, w)
+                      self._px(types, z.dtype), h0, w)
         count = torch.ones_like(lat)
         active = count < max_nodes
         for _ in range(2 * max_nodes):
@@ -381,10 +282,7 @@ class TreeDecoder(nn.Module):
                 break
             i = cur[act]
             inward = buf.down[i] + buf.csum[i]
-            local = self.topo.local  # a local head reads neither x, z nor the messages
-            logit = self.topo(None if local else self.node_inputs(buf.x[i], buf.type[i]),
-                              None if local else zt[act], inward, buf.depth[i], buf.nchild[i],
-                              buf.w[i])
+            logit = self.topo(buf.w[i], buf.depth[i], buf.nchild[i])
             expand = (logit > 0) & (buf.depth[i] < max_depth)
             pxi = buf.px[i]
             s = torch.where(expand[:, None], inward, buf.csum[i])
@@ -396,7 +294,7 @@ class TreeDecoder(nn.Module):
                 be, pe, he = act[e], i[e], h[e]
                 w = wsrc.take(be, count[be], he, buf.w[pe])
                 feat, types = self._new_nodes(zl[be], he, w)
-                px = self._px(feat, types, None if zx is None else zx[be])
+                px = self._px(types, z.dtype)
                 cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, px, he, w)
                 buf.nchild[pe] += 1
                 count[be] += 1
@@ -412,9 +310,8 @@ class TreeDecoder(nn.Module):
             active &= count < max_nodes
         return buf.split(b)
 
-    def _px(self, x: Tensor, node_type: Tensor, zx: Tensor | None = None) -> Tensor:
-        xp = self.proj(self.node_inputs(x, node_type))
-        return self.cell.project(xp if zx is None else xp + zx)
+    def _px(self, node_type: Tensor, dtype: torch.dtype) -> Tensor:
+        return self.cell.project(self.proj(self.node_inputs(node_type, dtype)))
 
     def _new_nodes(self, zl: Tensor, h: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:
         feat, logits = self.node_heads(zl, h, w)
@@ -432,14 +329,12 @@ class _NodeLatents:
         b = z.shape[0]
         if given is not None and len(given) != b:
             raise ValueError(f"node_latents: {len(given)} robots for {b} latents")
-        if (given is not None or noise is not None) and not self.dim:
-            raise ValueError("node latents given, but the decoder has no node latents")
         if noise is not None and (noise.dim() != 3 or noise.shape[0] != b
                                   or noise.shape[1] < max_nodes or noise.shape[2] != self.dim):
             raise ValueError(f"node_noise must be [{b}, >= {max_nodes}, {self.dim}], "
                              f"got {list(noise.shape)}")
         self.noise = None if noise is None else noise.to(z)
-        self.zp = dec.W1_p(z) if self.dim else None
+        self.zp = dec.W1_p(z)
         given = list(given) if given is not None else []
         for k, g in enumerate(given):
             if g.dim() != 2 or g.shape[1] != self.dim:
@@ -453,8 +348,6 @@ class _NodeLatents:
 
     def take(self, rows: Tensor, t: Tensor, h: Tensor, w_parent: Tensor) -> Tensor:
         """Latents of the new nodes number ``t`` of latents ``rows`` (parent message ``h``)."""
-        if not self.dim:
-            return h.new_zeros(rows.numel(), 0)
         have = t < self.lens[rows]
         if bool(have.all()):  # reconstruction: every node's latent is given, no prior needed
             return self.table[rows, t]

@@ -7,8 +7,8 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 from torch_geometric.data import Data
 
-from robovae.model.decoder import soft_clamp
-from robovae.model.tree import TreeGRUCell, TreeSchedule, level_messages, tree_schedule
+from robovae.model.messages import level_messages
+from robovae.model.tree import TreeGRUCell, TreeSchedule, soft_clamp, tree_schedule
 
 
 def reparametrize(mu: Tensor, logvar: Tensor) -> Tensor:
@@ -17,7 +17,7 @@ def reparametrize(mu: Tensor, logvar: Tensor) -> Tensor:
 
 
 class TreeEncoder(nn.Module):
-    """Encode a batch of robot trees into ``(mu, logvar)`` of ``q(z | G)``.
+    """Encode a batch of robot trees into ``q(z | G)`` and the node posteriors ``q(w_i | G)``.
 
     - eq. 5: ``x_i^p = W^p x_i`` (``proj``);
     - eq. 4: GRU messages ``m_ij`` along every tree edge in both directions (:class:`TreeGRUCell`):
@@ -28,30 +28,31 @@ class TreeEncoder(nn.Module):
     - eq. 7: ``h_G = sum of h_i over the leaves`` (a one-node tree's root is its leaf);
     - ``mu = Linear(h_G)``, ``logvar = Linear(h_G)`` (``log sigma^2``, unclamped).
 
-    **Node latents** (``node_latent_dim > 0``, beyond the paper): every node also gets a local
-    posterior ``q(w_i | G) = N(mu^w(g_i), diag exp(logvar^w(g_i)))`` from its own readout
-    ``h_i`` (eq. 6, computed for every node, not only the leaves) and the two structural facts
-    a node's latent has to carry exactly, its type ``t_i`` and its number of children ``K_i``:
-    ``g_i = h_i + E^t_{t_i} + E^K_{min(K_i, 16)} + K_i c^K`` (the numeric term lets counts
-    beyond the training robots' extrapolate). What is particular to a node then need not
-    squeeze through the one robot vector ``z`` (:mod:`robovae.model.decoder` reads ``w_i`` when
-    it builds node ``i``).
+    **Node latents**: every node also gets a posterior
+    ``q(w_i | G) = N(mu^w(g_i), diag exp(logvar^w(g_i)))`` (log-variance soft-clamped to
+    ``(-10, 10)``) from its readout ``h_i`` (eq. 6, for every node) and the two structural facts
+    its latent must carry exactly, its type ``t_i`` and its number of children ``K_i``:
+    ``g_i = h_i + E^t_{t_i} + E^K_{min(K_i, max_children_embed)} + K_i c^K`` (the linear term
+    lets counts beyond the embedded ones extrapolate).
 
     Args:
         in_dim: feature width ``d``; ``batch.x`` must already be normalised.
         hidden_dim: message / hidden width ``H``.
-        latent_dim: latent width.
-        node_latent_dim: width of the node latents ``w_i`` (0: none, the paper's model).
+        latent_dim: width of ``z``.
+        node_latent_dim: width of the node latents ``w_i`` (at least 1).
         num_types: number of node types (for the node latents' type embedding).
         max_children_embed: child counts above this share the last count embedding.
-        node_structure: the node posterior reads ``t_i`` and ``K_i`` (``g_i`` above); without,
-            ``g_i = h_i`` (an ablation: unseen robots then decode much worse).
+
+    Raises:
+        ValueError: ``node_latent_dim < 1``.
     """
 
-    def __init__(self, in_dim: int, hidden_dim: int, latent_dim: int,
-                 node_latent_dim: int = 0, num_types: int = 2,
-                 max_children_embed: int = 16, node_structure: bool = True) -> None:
+    def __init__(self, in_dim: int, hidden_dim: int, latent_dim: int, node_latent_dim: int,
+                 num_types: int = 2, max_children_embed: int = 16) -> None:
         super().__init__()
+        if node_latent_dim < 1:
+            raise ValueError(f"the encoder needs node latents (node_latent_dim >= 1), "
+                             f"got {node_latent_dim}")
         self.proj = nn.Linear(in_dim, hidden_dim, bias=False)
         self.cell = TreeGRUCell(hidden_dim)
         self.W_e = nn.Linear(hidden_dim, hidden_dim)
@@ -59,14 +60,11 @@ class TreeEncoder(nn.Module):
         self.mu = nn.Linear(hidden_dim, latent_dim)
         self.logvar = nn.Linear(hidden_dim, latent_dim)
         self.node_latent_dim = node_latent_dim
-        self.node_structure = bool(node_latent_dim and node_structure)
-        if self.node_structure:
-            self.type_emb = nn.Embedding(num_types, hidden_dim)
-            self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
-            self.count_vec = nn.Parameter(torch.zeros(hidden_dim))
-        if node_latent_dim:
-            self.node_mu = nn.Linear(hidden_dim, node_latent_dim)
-            self.node_logvar = nn.Linear(hidden_dim, node_latent_dim)
+        self.type_emb = nn.Embedding(num_types, hidden_dim)
+        self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
+        self.count_vec = nn.Parameter(torch.zeros(hidden_dim))
+        self.node_mu = nn.Linear(hidden_dim, node_latent_dim)
+        self.node_logvar = nn.Linear(hidden_dim, node_latent_dim)
 
     def forward(self, batch: Data, sched: TreeSchedule | None = None) -> tuple[Tensor, Tensor]:
         """``(mu, logvar)``, ``[B, latent]`` each, for a ``Batch`` (or one ``Data``)."""
@@ -99,14 +97,11 @@ class TreeEncoder(nn.Module):
         """``(mu^w, logvar^w)`` of every node's latent, ``[N, node_latent_dim]`` each, **node
         order**, from the same level-order inputs as :meth:`readout` and the node types (node
         order)."""
-        if not self.node_latent_dim:
-            raise ValueError("this encoder has no node latents (node_latent_dim=0)")
         g = self.node_states(x, inward).index_select(0, sched.inv)
-        if self.node_structure:
-            k = sched.num_children
-            g = g + self.type_emb(node_type) \
-                + self.count_emb(k.clamp_max(self.count_emb.num_embeddings - 1)) \
-                + k[:, None].to(x.dtype) * self.count_vec
+        k = sched.num_children
+        g = g + self.type_emb(node_type) \
+            + self.count_emb(k.clamp_max(self.count_emb.num_embeddings - 1)) \
+            + k[:, None].to(x.dtype) * self.count_vec
         mu, logvar = _heads(g, self.node_mu, self.node_logvar)
         return mu, soft_clamp(logvar)
 
@@ -122,3 +117,37 @@ def _heads(h: Tensor, mu: nn.Linear, logvar: nn.Linear) -> tuple[Tensor, Tensor]
     hd = h.double()
     return tuple(F.linear(hd, head.weight.double(), head.bias.double()).to(h.dtype)
                  for head in (mu, logvar))
+
+
+def encode_reference(encoder: TreeEncoder, data: Data) -> tuple[Tensor, Tensor]:
+    """Naive per-tree encoder (a Python loop over directed edges), for tests/benchmarks.
+
+    Computes eq. 4–7 literally: every message ``m_ij`` from the list of ``m_ki``,
+    ``k in N(i)\\j``, with :meth:`TreeGRUCell.forward_set`. Returns ``(mu, logvar)``, ``[1, z]``.
+    """
+    parent = data.parent.tolist()
+    n = len(parent)
+    nbrs: list[list[int]] = [[] for _ in range(n)]
+    for i, p in enumerate(parent):
+        if p >= 0:
+            nbrs[i].append(p)
+            nbrs[p].append(i)
+    xp = encoder.proj(data.x)
+    memo: dict[tuple[int, int], Tensor] = {}
+
+    def msg(i: int, j: int) -> Tensor:
+        inc = [memo[(k, i)] for k in nbrs[i] if k != j]
+        stack = torch.stack(inc) if inc else xp.new_zeros(0, xp.shape[1])
+        return encoder.cell.forward_set(xp[i], stack)
+
+    for i in reversed(range(1, n)):  # upward: children are done before their parent
+        memo[(i, parent[i])] = msg(i, parent[i])
+    for i in range(1, n):  # downward: the parent's own down message is done first
+        memo[(parent[i], i)] = msg(parent[i], i)
+    h_g = xp.new_zeros(xp.shape[1])
+    for i in range(n):
+        if any(parent[k] == i for k in nbrs[i]):
+            continue  # not a leaf
+        inc = sum((memo[(k, i)] for k in nbrs[i]), xp.new_zeros(xp.shape[1]))
+        h_g = h_g + torch.relu(encoder.W_e(xp[i]) + encoder.U_e(inc))
+    return encoder.mu(h_g[None]), encoder.logvar(h_g[None])

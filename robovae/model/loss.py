@@ -13,10 +13,17 @@ is the mean squared error over the node's own columns (``batch.x_mask``).
   conditional prior ``p(w_i | z, h_{p->i}, w_p)`` (:mod:`robovae.model.decoder`), summed over the
   graph's nodes: ``1/2 sum_j (lambda^p - lambda^q + (e^{lambda^q} + (mu^q - mu^p)^2)
   e^{-lambda^p} - 1)``;
-- ``loss = topo + feat + type + beta * kl + beta_nodes * kl_nodes`` (eq. 13).
+- ``loss = topo + feat + type + beta * kl + beta_nodes * kl_nodes`` (eq. 13);
+- ``per_graph_nelbo``: the negative ELBO of each graph in nats, every term at weight 1 and the
+  features scored as a unit-variance Gaussian in normalised units:
+  ``topo + type + sum_{i, c own} ((f_ic - f^_ic)^2 + log 2 pi) / 2 + kl + kl_nodes`` (at the
+  ``z`` and ``w`` the caller decoded, e.g. the posterior means: a one-sample estimate), so that
+  models with and without node latents compare on one scale.
 """
 
 from __future__ import annotations
+
+import math
 
 import torch
 import torch.nn.functional as F
@@ -41,7 +48,9 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
 
     Returns:
         ``loss``, ``topo``, ``feat``, ``type``, ``kl``, ``kl_nodes`` (scalars, batch means of
-        per-graph sums; ``kl_nodes`` is 0 without node latents), ``per_graph_loss`` ``[B]``, and
+        per-graph sums; ``kl_nodes`` is 0 without node latents), ``per_graph_loss`` ``[B]``,
+        ``per_graph_kl``, ``per_graph_kl_nodes`` and ``per_graph_nelbo`` ``[B]`` (detached, nats;
+        module docstring), and
         detached metrics ``topo_acc`` (share of correct decisions) and ``type_acc`` (share of
         correct node types).
     """
@@ -71,6 +80,11 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
         per_graph_loss = per_graph_loss + (beta if beta_nodes is None else beta_nodes) \
             * kl_nodes_g
     with torch.no_grad():
+        # the negative ELBO per graph, in nats: topology BCE + type CE + unit-variance Gaussian
+        # NLL of the own feature columns (normalised units) + both KL terms at weight 1
+        cols = per_graph(mask.sum(1), graph)
+        nll = per_graph(sq.sum(1), graph) * 0.5 + 0.5 * math.log(2 * math.pi) * cols
+        nelbo_g = topo_g + type_g + nll + kl_g + kl_nodes_g
         topo_acc = ((out.topo_logits > 0).float() == out.topo_target).float().mean()
         type_acc = (out.type_logits.argmax(-1) == batch.node_type).float().mean()
     return {
@@ -81,6 +95,9 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
         "kl": kl_g.mean(),
         "kl_nodes": kl_nodes_g.mean(),
         "per_graph_loss": per_graph_loss,
+        "per_graph_kl": kl_g.detach(),
+        "per_graph_kl_nodes": kl_nodes_g.detach(),
+        "per_graph_nelbo": nelbo_g,
         "topo_acc": topo_acc,
         "type_acc": type_acc,
     }

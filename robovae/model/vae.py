@@ -5,42 +5,41 @@ split by the datamodule and stored in every checkpoint), so ``RoboVAE.load_from_
 alone can encode robot files and decode robots in physical units.
 
 Loss (eq. 12–13):  L = Σ_t BCE(p_t, p̂_t) + Σ_j [MSE(f_j, f̂_j) + CE(s_j, ŝ_j)] + β L_KL,
-with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``; with
-node latents (``node_latent_dim``) also ``+ β_w Σ_j KL(q(w_j | G) || p(w_j | z, h_{p→j}, w_p))``.
+with β linearly warmed up from ``beta_start`` to ``beta`` over ``beta_warmup_epochs``, plus the
+node latents' ``β_w Σ_j KL(q(w_j | G) || p(w_j | z, h_{p→j}, w_p))`` (:mod:`robovae.model.loss`;
+the BCE, CE and KL terms in nats, the MSE in normalised feature units squared).
 
 Reproducible training: the randomness of an epoch — the shuffle order of a single-process
-training loader (a ``RandomSampler``) and the reparametrisation noise of each batch — is drawn
-from generators seeded by the run's seed (``seed_everything``), the epoch, the batch index and
-the rank, never from the global RNG. A run killed and resumed from an end-of-epoch checkpoint
-(``robovae fit ... --ckpt_path last``) therefore continues exactly like an uninterrupted run.
+training loader (a ``RandomSampler``), the reparametrisation noise of each batch and the
+datamodule's augmentation (:mod:`robovae.data.augment`) — is drawn from generators seeded by the
+run's seed (``seed_everything``), the epoch, the batch index and the rank
+(:func:`~robovae.data.augment.run_seed`), never from the global RNG. A run killed and resumed
+from an end-of-epoch checkpoint (``robovae fit ... --ckpt_path last``) therefore continues
+exactly like an uninterrupted run.
 Under DDP, Lightning's ``DistributedSampler`` shuffles by ``(seed, epoch)`` already.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import random
 from collections.abc import Mapping, Sequence
 
 import lightning as L
-import numpy as np
 import torch
 from torch import Tensor
 from torch.utils.data import DataLoader, RandomSampler
 from torch_geometric.data import Batch, Data
 
+from robovae.data.augment import NOISE, SHUFFLE, run_seed
 from robovae.data.features import Normalizer, get_feature_set
 from robovae.data.graph import RobotData, tree_data
 from robovae.errors import RobovaeError
-from robovae.model.augment import jitter_features, tree_surgery
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
-from robovae.model.tree import level_messages, tree_schedule
-
-# streams of :meth:`RoboVAE.run_seed`
-_SHUFFLE, _NOISE = 1, 2
+from robovae.model.messages import level_messages
+from robovae.model.prior import latent, node_noise
+from robovae.model.tree import tree_schedule
 
 
 def _draw(mu: Tensor, logvar: Tensor, sample: bool,
@@ -71,34 +70,13 @@ class RoboVAE(L.LightningModule):
         lr_min_factor: final learning rate as a fraction of ``lr`` for the cosine schedule.
         max_nodes: node limit of autoregressive decoding.
         max_depth: depth limit of autoregressive decoding.
-        topo_context: feed depth and child count to the expansion head (beyond eq. 9).
         support_margin: decoded features are clipped to the training range of each column
             widened by this fraction of its width (``None``: no clipping). Keeps prior samples
             on the support of the data: a log-scaled mass far outside it would be e^20 kg.
-        decoder_inputs: what the decoder reads of each node, ``"features"`` (eq. 9–10) or
-            ``"types"`` (one-hot node type; :mod:`robovae.model.decoder`).
-        latent_inputs: the decoder's GRU inputs also receive ``z`` (``x^p = W^p x + W^{zx} z``,
-            :mod:`robovae.model.decoder`); its messages then run after the encoder's instead
-            of in the same stacked pass.
-        feature_shift: training-time feature augmentation
-            (:func:`~robovae.model.augment.jitter_features`): std of a per-robot offset of every
-            feature column, in normalised units (0: off).
-        feature_noise: std of per-node feature noise, in normalised units (0: off).
-        tree_surgery: training-time topology augmentation
-            (:func:`~robovae.model.augment.tree_surgery`): probability that a training robot is
-            rebuilt by random limb edits (drop, duplicate, graft from a batch mate, swap) in a
-            training step (0: off).
-        surgery_ops: at most this many edits per rebuilt robot.
-        augment_until: augmentation (features and trees) runs for this fraction of
-            ``max_epochs``; the epochs after it train on the true robots (1.0: always augment).
-        node_latent_dim: width of the per-node latents ``w`` (0: none, the paper's model):
-            the encoder gives every node a posterior, the decoder reads it in the node's
-            heads and learns a conditional prior for generation (:mod:`robovae.model.decoder`).
+        node_latent_dim: width of the per-node latents ``w`` (at least 1): the encoder gives
+            every node a posterior, the decoder reads it in the node's heads and learns a
+            conditional prior for generation (:mod:`robovae.model.decoder`).
         beta_nodes: weight of the node latents' KL (``None``: follow β and its warm-up).
-        local_heads: with node latents, a node's type and its expand/backtrack decisions read
-            only its own latent and the child-count/depth context (:mod:`robovae.model.decoder`).
-        node_structure: the node posteriors read each node's type and number of children
-            (:class:`~robovae.model.encoder.TreeEncoder`; off only for the ablation).
     """
 
     def __init__(
@@ -115,19 +93,9 @@ class RoboVAE(L.LightningModule):
         lr_min_factor: float = 0.05,
         max_nodes: int = 256,
         max_depth: int = 64,
-        topo_context: bool = True,
         support_margin: float | None = 0.1,
-        feature_shift: float = 0.0,
-        feature_noise: float = 0.0,
-        augment_until: float = 1.0,
-        decoder_inputs: str = "features",
-        latent_inputs: bool = False,
-        tree_surgery: float = 0.0,
-        surgery_ops: int = 3,
-        node_latent_dim: int = 0,
+        node_latent_dim: int = 32,
         beta_nodes: float | None = None,
-        local_heads: bool = False,
-        node_structure: bool = True,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -135,11 +103,9 @@ class RoboVAE(L.LightningModule):
         self.feature_set = fs
         self.normalizer = Normalizer(fs)
         self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim, node_latent_dim,
-                                   fs.num_node_types, node_structure=node_structure)
+                                   fs.num_node_types)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
-                                   topo_context=topo_context, type_mask=fs.type_mask(),
-                                   inputs=decoder_inputs, latent_inputs=latent_inputs,
-                                   node_latent_dim=node_latent_dim, local_heads=local_heads)
+                                   node_latent_dim, type_mask=fs.type_mask())
         self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------
@@ -168,23 +134,16 @@ class RoboVAE(L.LightningModule):
         self.training_robots = checkpoint.get("robovae_training_robots", [])
 
     def normalized(self, batch: Batch) -> Batch:
-        """A shallow copy of ``batch`` whose ``x`` is in model units."""
+        """A shallow copy of ``batch`` whose ``x`` is in model units, plus the batch's
+        ``x_jitter`` when it has one (:class:`~robovae.data.augment.FeatureJitter`)."""
         out = batch.clone()
         out.x = self.normalizer(batch.x.to(self.device), batch.node_type.to(self.device))
+        jitter = getattr(batch, "x_jitter", None)
+        if jitter is not None:
+            out.x = out.x + jitter.to(out.x)
         return out
 
     # --- training ------------------------------------------------------------------------
-
-    def augmenting(self) -> bool:
-        """Whether this training epoch augments the robots (``feature_shift``/``noise`` or
-        ``tree_surgery`` set and ``epoch < augment_until * max_epochs``)."""
-        hp = self.hparams
-        if not (hp.feature_shift > 0 or hp.feature_noise > 0 or hp.tree_surgery > 0):
-            return False
-        trainer = self._trainer
-        if hp.augment_until >= 1 or trainer is None or not trainer.max_epochs:
-            return True
-        return self.current_epoch < hp.augment_until * trainer.max_epochs
 
     def beta_at(self, epoch: int) -> float:
         """β of an epoch: linear warm-up from ``beta_start`` to ``beta``."""
@@ -199,15 +158,6 @@ class RoboVAE(L.LightningModule):
         bn = self.hparams.get("beta_nodes")
         return self.beta_at(epoch) if bn is None else float(bn)
 
-    def run_seed(self, *keys: int) -> int:
-        """A seed derived from the run's seed (``seed_everything``'s ``PL_GLOBAL_SEED``, else
-        ``torch.initial_seed()``) and ``keys`` (stream, epoch, batch, rank)."""
-        base = os.environ.get("PL_GLOBAL_SEED")
-        base = int(base) if base is not None and base.lstrip("-").isdigit() \
-            else torch.initial_seed()
-        entropy = [abs(int(k)) for k in (base, *keys)]
-        return int(np.random.SeedSequence(entropy).generate_state(2, np.uint64)[0] >> 1)
-
     def on_train_epoch_start(self) -> None:
         """Seed this epoch's shuffle order from ``(seed, epoch)`` (see the module docstring):
         the global RNG is not part of a checkpoint, the epoch is."""
@@ -220,46 +170,27 @@ class RoboVAE(L.LightningModule):
             sampler = getattr(dl, "sampler", None) if isinstance(dl, DataLoader) else None
             if isinstance(sampler, RandomSampler):
                 sampler.generator = torch.Generator().manual_seed(
-                    self.run_seed(_SHUFFLE, self.current_epoch, k, self.global_rank))
+                    run_seed(SHUFFLE, self.current_epoch, k, self.global_rank))
 
     def forward(self, batch: Batch, sample: bool = True,
                 generator: torch.Generator | None = None) -> dict[str, Tensor]:
         """Loss terms of a batch of physical-unit robot graphs (teacher forcing). With
         ``sample``, ``z`` is drawn from ``q(z | G)`` (noise from ``generator`` when given).
-        Training batches are augmented first (``tree_surgery``, then the feature jitter)."""
-        hp = self.hparams
-        augment = sample and self.training and self.augmenting()
-        if augment and hp.tree_surgery > 0:
-            seed = generator.initial_seed() if generator is not None else \
-                int(torch.randint(2 ** 62, (1,)))
-            batch = Batch.from_data_list(tree_surgery(
-                batch.to_data_list(), self.feature_set, hp.tree_surgery, hp.surgery_ops,
-                hp.max_nodes, random.Random(seed)))
+        Training batches come augmented by the datamodule (:mod:`robovae.data.augment`)."""
         nb = self.normalized(batch)
         sched = tree_schedule(nb)
-        if augment:
-            nb.x = jitter_features(nb.x, nb.x_mask, sched.graph, sched.num_graphs,
-                                   hp.feature_shift, hp.feature_noise,
-                                   keep=self.normalizer.is_cat, generator=generator)
-        # unless they read z (latent_inputs), the decoder's teacher-forced messages do not
-        # depend on z: run the encoder's and the decoder's level passes together (one stacked
-        # pass, the same as two separate ones); otherwise teacher forcing runs its own after z
+        # the decoder's teacher-forced messages read only the node types: the encoder's and
+        # the decoder's level passes run as one stacked pass (the same as two separate ones)
         enc, dec = self.encoder, self.decoder
-        stacked = dec.zin is None
         x = nb.x.index_select(0, sched.order)  # level order
-        px = [enc.cell.project(x, enc.proj.weight)]
-        if stacked:
-            px.append(dec.project_levels(dec.node_inputs(nb.x, nb.node_type), sched))
-        cells = [enc.cell, dec.cell] if stacked else [enc.cell]
-        down, total, sdown = level_messages(cells, torch.stack(px), sched, num_encoder=1)
-        messages = (down[1], total[1], sdown[1]) if stacked else None
+        px = torch.stack([enc.cell.project(x, enc.proj.weight),
+                          dec.project_levels(nb.node_type, sched, x.dtype)])
+        down, total, sdown = level_messages([enc.cell, dec.cell], px, sched, num_encoder=1)
         mu, logvar = enc.readout(x, total[0], sched)
         z = _draw(mu, logvar, sample, generator)
-        w = w_mu = w_logvar = None
-        if enc.node_latent_dim:
-            w_mu, w_logvar = enc.node_readout(x, total[0], sched, nb.node_type)
-            w = _draw(w_mu, w_logvar, sample, generator)
-        out = dec.teacher_forcing(z, nb, sched, messages=messages, w=w)
+        w_mu, w_logvar = enc.node_readout(x, total[0], sched, nb.node_type)
+        w = _draw(w_mu, w_logvar, sample, generator)
+        out = dec.teacher_forcing(z, nb, w, sched, messages=(down[1], total[1], sdown[1]))
         epoch = self.current_epoch
         return vae_loss(out, nb, mu, logvar, self.beta_at(epoch), w_mu, w_logvar,
                         self.beta_nodes_at(epoch))
@@ -268,13 +199,11 @@ class RoboVAE(L.LightningModule):
         gen = None
         if stage == "train":  # noise of (seed, epoch, batch, rank): resumable, see the docstring
             gen = torch.Generator(device=self.device).manual_seed(
-                self.run_seed(_NOISE, self.current_epoch, batch_idx, self.global_rank))
+                run_seed(NOISE, self.current_epoch, batch_idx, self.global_rank))
         terms = self(batch, sample=stage == "train", generator=gen)
         bs = batch.num_graphs
         # sync_dist: under DDP the epoch value is the mean over all ranks' robots
-        keys = ("loss", "topo", "feat", "type", "kl") + \
-            (("kl_nodes",) if self.hparams.get("node_latent_dim") else ())
-        for k in keys:
+        for k in ("loss", "topo", "feat", "type", "kl", "kl_nodes"):
             self.log(f"{stage}/{k}", terms[k], batch_size=bs, prog_bar=k == "loss",
                      on_epoch=True, on_step=False, sync_dist=True)
         if stage == "train":
@@ -299,10 +228,8 @@ class RoboVAE(L.LightningModule):
         (:class:`~robovae.generate.predict.LatentIndices`: ``z_i`` from ``(seed, i)``)."""
         if not isinstance(batch, dict):
             return self.reconstruct(batch)
-        from robovae.generate.pipeline import prior_latents
-
         seed, temp = int(batch["seed"][0]), float(batch["temperature"][0])
-        z, noise = prior_latents(self, seed, batch["index"].tolist(), temp)
+        z, noise = self.sample_prior(seed, batch["index"].tolist(), temp)
         return {"index": batch["index"], "z": z, "graphs": self.decode(z, node_noise=noise),
                 "seed": seed, "temperature": temp}
 
@@ -336,8 +263,8 @@ class RoboVAE(L.LightningModule):
     @torch.no_grad()
     def encode_nodes(self, batch: Batch | Data) -> tuple[Tensor, list[Tensor]]:
         """``(mu, node_mu)``: each robot's latent mean ``[B, latent_dim]`` and its nodes' latent
-        means in pre-order (a list of ``[n_i, node_latent_dim]``; empty rows without node
-        latents): what :meth:`reconstruct` decodes."""
+        means in pre-order (a list of ``[n_i, node_latent_dim]``): what :meth:`reconstruct`
+        decodes."""
         if not isinstance(batch, Batch):
             batch = Batch.from_data_list([batch])
         nb = self.normalized(batch.to(self.device))
@@ -346,8 +273,6 @@ class RoboVAE(L.LightningModule):
         x, inward = enc.messages(nb, sched)
         mu, _ = enc.readout(x, inward, sched)
         counts = torch.bincount(sched.graph, minlength=sched.num_graphs).tolist()
-        if not enc.node_latent_dim:
-            return mu, [mu.new_zeros(n, 0) for n in counts]
         w_mu, _ = enc.node_readout(x, inward, sched, nb.node_type)
         return mu, list(torch.split(w_mu, counts))
 
@@ -389,7 +314,7 @@ class RoboVAE(L.LightningModule):
         """Greedy autoregressive decoding of latents ``z`` [B, latent] into robot graphs with
         physical feature values.
 
-        With node latents, ``node_latents`` (per robot ``[n_i, node_latent_dim]``, pre-order,
+        ``node_latents`` (per robot ``[n_i, node_latent_dim]``, pre-order,
         e.g. from :meth:`encode_nodes`) are used for the first ``n_i`` nodes; the other nodes
         are drawn from their conditional prior, ``mu^p + sigma^p * node_noise[b, t]``
         (``node_noise``: ``[B, >= max_nodes, node_latent_dim]``, temperature included), or take
@@ -431,28 +356,55 @@ class RoboVAE(L.LightningModule):
         return out
 
     @torch.no_grad()
-    def reconstruct(self, batch: Batch | Data) -> list[RobotData]:
-        """Encode (z = mu) and decode each robot; names follow the inputs."""
+    def reconstruct(self, batch: Batch | Data, from_z: bool = False) -> list[RobotData]:
+        """Encode (``z = mu``, node latents at their posterior means) and decode each robot;
+        names follow the inputs. ``from_z``: decode ``z = mu`` alone, every node latent at the
+        mean of its conditional prior (nothing read per node from the input): what the robot
+        latent carries by itself."""
         if not isinstance(batch, Batch):
             batch = Batch.from_data_list([batch])
         mu, nodes = self.encode_nodes(batch)
         # no support clipping: a real robot may lie outside the training range
-        out = self.decode(mu, node_latents=nodes if self.encoder.node_latent_dim else None,
-                          clamp=False)
+        out = self.decode(mu, node_latents=None if from_z else nodes, clamp=False)
         names = batch.name if isinstance(batch.name, list) else [batch.name]
         for d, name in zip(out, names):
             d.name = name
         return out
 
     @torch.no_grad()
+    def latent_costs(self, batch: Batch | Data) -> dict[str, Tensor]:
+        """Per robot, in nats: ``kl_z`` = KL(q(z | G) || N(0, I)), ``kl_nodes`` = the sum over its
+        nodes of KL(q(w_i | G) || p(w_i | z, h, w_parent)), and ``nelbo_per_node`` = the negative
+        ELBO (:func:`~robovae.model.loss.vae_loss`, teacher forcing at the posterior means)
+        divided by the number of nodes; also ``nodes``. Tensors ``[B]``."""
+        if not isinstance(batch, Batch):
+            batch = Batch.from_data_list([batch])
+        terms = self(batch.to(self.device), sample=False)
+        nodes = torch.bincount(batch.batch.to(self.device), minlength=batch.num_graphs)
+        return {"kl_z": terms["per_graph_kl"], "kl_nodes": terms["per_graph_kl_nodes"],
+                "nelbo_per_node": terms["per_graph_nelbo"] / nodes.to(terms["per_graph_nelbo"]),
+                "nodes": nodes}
+
+    def sample_prior(self, seed: int, indices: Sequence[int],
+                     temperature: float = 1.0) -> tuple[Tensor, Tensor]:
+        """``(z, node_noise)`` of robots ``indices`` of a generation run with ``seed``: the
+        arguments of :meth:`decode` for ancestral sampling. ``z`` is ``[B, latent_dim]``
+        (:func:`~robovae.model.prior.latent`, ``N(0, T^2 I)``), ``node_noise``
+        ``[B, max_nodes, node_latent_dim]`` (:func:`~robovae.model.prior.node_noise`), both in
+        the model's dtype; robot ``i`` draws the same values in any batch."""
+        hp = self.hparams
+        z = torch.stack([latent(seed, int(i), hp.latent_dim, temperature) for i in indices])
+        noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, hp.node_latent_dim,
+                                        temperature) for i in indices])
+        return z.to(self.dtype), noise.to(self.dtype)
+
+    @torch.no_grad()
     def sample(self, n: int, temperature: float = 1.0,
                generator: torch.Generator | None = None) -> list[RobotData]:
-        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)`` (and, with node
-        latents, every node's latent from its conditional prior at the same temperature)."""
+        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)``, every node's
+        latent from its conditional prior at the same temperature."""
         hp = self.hparams
         z = torch.randn(n, hp.latent_dim, generator=generator) * temperature
-        noise = None
-        if hp.get("node_latent_dim"):
-            noise = torch.randn(n, hp.max_nodes, hp.node_latent_dim,
-                                generator=generator) * temperature
+        noise = torch.randn(n, hp.max_nodes, hp.node_latent_dim,
+                            generator=generator) * temperature
         return self.decode(z, node_noise=noise)

@@ -20,7 +20,6 @@ from robovae.generate.pipeline import (
     generate,
     latent,
     node_noise,
-    prior_latents,
     read_manifest,
 )
 from robovae.generate.predict import RobotWriter
@@ -81,13 +80,12 @@ def test_resume_skips_done_robots_and_survives_a_torn_line(trained, tmp_path):
 
 def test_node_noise_depends_on_seed_and_index_only(trained_nodes):
     model = trained_nodes[0]
-    z, noise = prior_latents(model, 4, [2, 7, 9], temperature=0.5)
-    z1, noise1 = prior_latents(model, 4, [7])
+    z, noise = model.sample_prior(4, [2, 7, 9], temperature=0.5)
+    z1, noise1 = model.sample_prior(4, [7])
     assert torch.equal(z[1], 0.5 * z1[0]) and torch.equal(noise[1], 0.5 * noise1[0])
     assert noise.shape == (3, model.hparams.max_nodes, 6)
     assert torch.equal(noise1[0], node_noise(4, 7, model.hparams.max_nodes, 6))
     assert not torch.equal(noise1[0], node_noise(4, 8, model.hparams.max_nodes, 6))
-    assert prior_latents(trained_nodes[0].__class__(), 0, [1])[1] is None  # no node latents
 
 
 def test_node_temperature_sets_the_node_noise_only(trained_nodes, tmp_path):

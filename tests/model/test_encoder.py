@@ -9,15 +9,9 @@ import torch
 from torch_geometric.data import Batch
 
 from robovae.data.graph import children, tree_data
-from robovae.model.encoder import TreeEncoder, reparametrize
-from robovae.model.tree import (
-    TreeGRUCell,
-    encode_reference,
-    exclusive_sibling_prefix,
-    level_messages,
-    level_messages_reference,
-    tree_schedule,
-)
+from robovae.model.encoder import TreeEncoder, encode_reference, reparametrize
+from robovae.model.messages import level_messages, level_messages_reference
+from robovae.model.tree import TreeGRUCell, exclusive_sibling_prefix, tree_schedule
 
 
 def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
@@ -79,7 +73,7 @@ def test_exclusive_sibling_prefix() -> None:
 @pytest.mark.parametrize("seed", [0, 1])
 def test_matches_reference(seed: int) -> None:
     torch.manual_seed(seed)
-    enc = TreeEncoder(62, 32, 8)
+    enc = TreeEncoder(62, 32, 8, 4, 3)
     for t in varied_trees(8, seed=seed):
         mu, logvar = enc(t)
         mu_r, logvar_r = encode_reference(enc, t)
@@ -89,7 +83,7 @@ def test_matches_reference(seed: int) -> None:
 
 def test_batching_invariance() -> None:
     torch.manual_seed(0)
-    enc = TreeEncoder(62, 32, 8).eval()
+    enc = TreeEncoder(62, 32, 8, 4, 3).eval()
     trees = varied_trees(64, seed=3)
     mu, logvar = enc(Batch.from_data_list(trees))
     assert mu.shape == (64, 8) == logvar.shape
@@ -101,7 +95,7 @@ def test_batching_invariance() -> None:
 
 def test_single_data_and_leaf_readout() -> None:
     torch.manual_seed(0)
-    enc = TreeEncoder(5, 16, 4)
+    enc = TreeEncoder(5, 16, 4, 4, 1)
     t = random_tree(1, random.Random(0), fs="random5")
     mu, _ = enc(t)  # a plain Data (no batch vector) works
     xp = enc.proj(t.x)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import random
 
-import pytest
 import torch
 from torch_geometric.data import Batch
 
@@ -13,9 +13,11 @@ from robovae.data.graph import tree_data
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
+from robovae.model.tree import tree_schedule
 from robovae.model.vae import RoboVAE
 
 FULL = get_feature_set("full")
+DW = 8  # node latent width
 
 
 def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
@@ -38,14 +40,19 @@ def random_tree(n: int, rng: random.Random, pop: float = 0.5, fs: str = "full"):
 def model(fs: str = "full", hidden: int = 32, latent: int = 8, seed: int = 0):
     torch.manual_seed(seed)
     f = get_feature_set(fs)
-    return (TreeEncoder(f.dim, hidden, latent),
-            TreeDecoder(f.dim, f.num_node_types, hidden, latent, type_mask=f.type_mask()))
+    return (TreeEncoder(f.dim, hidden, latent, DW, f.num_node_types),
+            TreeDecoder(f.dim, f.num_node_types, hidden, latent, DW, type_mask=f.type_mask()))
 
 
 def losses(enc, dec, batch, beta=1.0, sample=False):
-    mu, logvar = enc(batch)
-    z = reparametrize(mu, logvar) if sample else mu
-    return vae_loss(dec.teacher_forcing(z, batch), batch, mu, logvar, beta)
+    """Loss terms of the encoder then the decoder (``z``, ``w`` drawn with ``sample``, else
+    the posterior means)."""
+    sched = tree_schedule(batch)
+    x, inward = enc.messages(batch, sched)
+    mu, logvar = enc.readout(x, inward, sched)
+    wm, wlv = enc.node_readout(x, inward, sched, batch.node_type)
+    z, w = (reparametrize(mu, logvar), reparametrize(wm, wlv)) if sample else (mu, wm)
+    return vae_loss(dec.teacher_forcing(z, batch, w, sched), batch, mu, logvar, beta, wm, wlv)
 
 
 def test_batching_is_exact() -> None:
@@ -61,7 +68,7 @@ def test_batching_is_exact() -> None:
     assert out["per_graph_loss"].shape == (64,)
     torch.testing.assert_close(out["per_graph_loss"], single, atol=1e-5, rtol=1e-6)
     torch.testing.assert_close(out["loss"], out["per_graph_loss"].mean())
-    total = out["topo"] + out["feat"] + out["type"] + 0.5 * out["kl"]
+    total = out["topo"] + out["feat"] + out["type"] + 0.5 * (out["kl"] + out["kl_nodes"])
     torch.testing.assert_close(out["loss"], total)
     assert float(out["type"]) > 0 and float(out["topo"]) > 0 and float(out["feat"]) > 0
 
@@ -71,8 +78,8 @@ def test_terms_by_hand() -> None:
     t = random_tree(6, rng, fs="random5")
     enc, dec = model("random5")
     mu, logvar = torch.randn(1, 8), torch.randn(1, 8)
-    out = dec.teacher_forcing(mu, t)
-    res = vae_loss(out, t, mu, logvar, beta=2.0)
+    out = dec.teacher_forcing(mu, t, torch.randn(t.num_nodes, DW))
+    res = vae_loss(out, t, mu, logvar, beta=2.0)  # (no node posterior: kl_nodes = 0)
     kl = -0.5 * (1 + logvar - mu**2 - logvar.exp()).sum()  # eq. 8 with B = 1
     torch.testing.assert_close(res["kl"], kl)
     assert float(res["type"]) == 0.0  # one node type
@@ -82,6 +89,9 @@ def test_terms_by_hand() -> None:
         out.topo_logits, out.topo_target, reduction="sum")
     torch.testing.assert_close(res["topo"], bce)
     torch.testing.assert_close(res["loss"], bce + feat + 2.0 * kl)
+    # the negative ELBO: every term at weight 1, features as a unit-variance Gaussian (nats)
+    nll = 0.5 * ((out.feat_pred - t.x) ** 2).sum() + 0.5 * math.log(2 * math.pi) * t.x.numel()
+    torch.testing.assert_close(res["per_graph_nelbo"], (bce + nll + kl)[None])
 
 
 def test_loss_decreases() -> None:
@@ -117,26 +127,27 @@ def test_overfit_single_tree() -> None:
         opt.step()
     enc.eval(), dec.eval()
     with torch.no_grad():
-        mu, _ = enc(t)
-        parent, types, x = dec.decode(mu, max_nodes=64, max_depth=32)[0]
+        sched = tree_schedule(t)
+        h = enc.messages(t, sched)
+        mu, _ = enc.readout(*h, sched)
+        wm, _ = enc.node_readout(*h, sched, t.node_type)
+        parent, types, x = dec.decode(mu, max_nodes=64, max_depth=32, node_latents=[wm])[0]
     assert parent.tolist() == t.parent.tolist()
     assert types.tolist() == [0] * 15
     assert float(((x - t.x) ** 2).mean()) < 0.05
 
 
-@pytest.mark.parametrize("latent_inputs", [False, True])
-def test_vae_forward_is_encoder_then_decoder(latent_inputs: bool) -> None:
-    """RoboVAE.forward (one stacked message pass, or two when the decoder reads z) gives the
-    loss of the encoder and the decoder called one after the other."""
+def test_vae_forward_is_encoder_then_decoder() -> None:
+    """RoboVAE.forward (one stacked message pass of encoder and decoder) gives the loss of the
+    encoder and the decoder called one after the other."""
     rng = random.Random(3)
     trees = [random_tree(rng.randint(1, 30), rng, rng.random(), fs="paper34") for _ in range(6)]
     batch = Batch.from_data_list(trees)
     torch.manual_seed(0)
-    vae = RoboVAE(hidden_dim=16, latent_dim=4, latent_inputs=latent_inputs).eval()
+    vae = RoboVAE(hidden_dim=16, latent_dim=4, node_latent_dim=3).eval()
     vae.normalizer.fit(batch.x, batch.node_type)
-    assert (vae.decoder.zin is not None) == latent_inputs
     with torch.no_grad():
         out = vae(batch, sample=False)
         ref = losses(vae.encoder, vae.decoder, vae.normalized(batch), beta=vae.beta_at(0))
-    for k in ("loss", "topo", "feat", "type", "kl"):
+    for k in ("loss", "topo", "feat", "type", "kl", "kl_nodes"):
         torch.testing.assert_close(out[k], ref[k], atol=1e-5, rtol=1e-5)

@@ -1,4 +1,4 @@
-"""Node latents (beyond the paper): decoding agrees with teacher forcing whether the nodes'
+"""Node latents: decoding agrees with teacher forcing whether the nodes'
 latents are given (reconstruction) or drawn from the conditional prior (generation); the node
 KL is the Gaussian KL; every parameter learns; the encoder's node posterior reads the node's
 type and child count."""
@@ -12,24 +12,23 @@ import torch
 from torch_geometric.data import Batch
 
 from robovae.data.graph import tree_data
-from robovae.model.decoder import TreeDecoder, soft_clamp
+from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
-from robovae.model.tree import tree_schedule
+from robovae.model.tree import soft_clamp, tree_schedule
 from tests.model.test_decoder import FULL, assert_decoded_as_scored, random_batch, random_tree
 
 DW = 6
 
 
-#: (seed, expansion bias) of random decoders that make trees of many sizes (asserted below)
-VARIED = {True: (4, 0.6), False: (5, 0.3)}
+#: (seed, expansion bias) of a random decoder that makes trees of many sizes (asserted below)
+VARIED = (4, 0.6)
 
 
-def make_decoder(local: bool) -> TreeDecoder:
-    seed, bias = VARIED[local]
+def make_decoder() -> TreeDecoder:
+    seed, bias = VARIED
     torch.manual_seed(seed)
-    dec = TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask(), inputs="types",
-                      node_latent_dim=DW, local_heads=local).eval()
+    dec = TreeDecoder(FULL.dim, 3, 32, 8, DW, type_mask=FULL.type_mask()).eval()
     with torch.no_grad():
         dec.topo.u.bias.add_(bias)
     return dec
@@ -40,7 +39,7 @@ def check_agrees(dec: TreeDecoder, z: torch.Tensor, trees: list, w: torch.Tensor
     """Teacher forcing with node latents ``w`` makes the decoded trees' decisions, types and
     features."""
     with torch.no_grad():
-        out = dec.teacher_forcing(z, Batch.from_data_list(trees), w=w)
+        out = dec.teacher_forcing(z, Batch.from_data_list(trees), w)
     assert_decoded_as_scored(out, trees, max_nodes, max_depth)
 
 
@@ -53,11 +52,10 @@ def decoded_trees(dec: TreeDecoder, z: torch.Tensor, max_nodes: int, max_depth: 
     return trees
 
 
-@pytest.mark.parametrize("local", [True, False])
-def test_decode_with_given_node_latents_matches_teacher_forcing(local: bool) -> None:
+def test_decode_with_given_node_latents_matches_teacher_forcing() -> None:
     """Reconstruction: node ``t`` of robot ``b`` takes ``node_latents[b][t]``; beyond the given
     rows it takes the prior mean (here every robot gives 150 rows, more than it uses)."""
-    dec = make_decoder(local)
+    dec = make_decoder()
     torch.manual_seed(100)
     z = torch.randn(12, 8) * 2
     given = [torch.randn(150, DW) * 2 for _ in range(12)]
@@ -67,13 +65,12 @@ def test_decode_with_given_node_latents_matches_teacher_forcing(local: bool) -> 
     check_agrees(dec, z, trees, w, max_nodes, max_depth)
 
 
-@pytest.mark.parametrize("local", [True, False])
 @pytest.mark.parametrize("noise", [False, True])
-def test_prior_decoding_matches_teacher_forcing(local: bool, noise: bool) -> None:
+def test_prior_decoding_matches_teacher_forcing(noise: bool) -> None:
     """Generation: every node's latent is ``mu^p + sigma^p eps_t`` of the prior that teacher
     forcing computes from the decoded tree, i.e. a fixed point of ``w -> prior(w)`` (reached
     after one sweep per tree level, since a node's prior reads its parent's latent)."""
-    dec = make_decoder(local)
+    dec = make_decoder()
     torch.manual_seed(100)
     z = torch.randn(12, 8) * 2
     max_nodes, max_depth = 120, 25
@@ -85,7 +82,7 @@ def test_prior_decoding_matches_teacher_forcing(local: bool, noise: bool) -> Non
     w = torch.zeros(batch.num_nodes, DW)
     with torch.no_grad():
         for _ in range(int(sched.depth.max()) + 1):
-            out = dec.teacher_forcing(z, batch, sched, w=w)
+            out = dec.teacher_forcing(z, batch, w, sched)
             w = out.prior_mu
             if eps is not None:
                 w = w + torch.exp(0.5 * out.prior_logvar) * eps[batch.batch, local_index]
@@ -93,7 +90,7 @@ def test_prior_decoding_matches_teacher_forcing(local: bool, noise: bool) -> Non
 
 
 def test_node_latent_inputs_are_checked() -> None:
-    dec = make_decoder(True)
+    dec = make_decoder()
     z = torch.randn(2, 8)
     with pytest.raises(ValueError, match="node_noise must be"):
         dec.decode(z, max_nodes=10, node_noise=torch.randn(2, 5, DW))
@@ -101,13 +98,10 @@ def test_node_latent_inputs_are_checked() -> None:
         dec.decode(z[:1], node_latents=[torch.zeros(3, DW)] * 2)
     with pytest.raises(ValueError, match=r"must be \[n, 6\]"):
         dec.decode(z, node_latents=[torch.zeros(3, DW), torch.zeros(3, DW + 1)])
-    with pytest.raises(ValueError, match="needs w"):
-        dec.teacher_forcing(z, Batch.from_data_list([random_tree(3, random.Random(0))] * 2))
-    plain = TreeDecoder(FULL.dim, 3, 32, 8)
-    with pytest.raises(ValueError, match="no node latents"):
-        plain.decode(z, node_latents=[torch.zeros(3, DW)] * 2)
-    with pytest.raises(ValueError, match="local heads need node latents"):
-        TreeDecoder(FULL.dim, 3, 32, 8, local_heads=True)
+    with pytest.raises(ValueError, match="needs node latents"):
+        TreeDecoder(FULL.dim, 3, 32, 8, 0)
+    with pytest.raises(ValueError, match="needs node latents"):
+        TreeEncoder(FULL.dim, 32, 8, 0)
 
 
 def test_node_kl_is_the_gaussian_kl() -> None:
@@ -116,11 +110,11 @@ def test_node_kl_is_the_gaussian_kl() -> None:
     rng = random.Random(1)
     trees = [random_tree(n, rng) for n in (1, 7, 12)]
     batch = Batch.from_data_list(trees)
-    dec = make_decoder(True)
+    dec = make_decoder()
     n = batch.num_nodes
     qm, qlv = torch.randn(n, DW), torch.randn(n, DW)
     z = torch.randn(3, 8)
-    out = dec.teacher_forcing(z, batch, w=qm)
+    out = dec.teacher_forcing(z, batch, qm)
     mu, logvar = torch.randn(3, 8), torch.randn(3, 8)
     base = vae_loss(out, batch, mu, logvar, beta=0.5)
     terms = vae_loss(out, batch, mu, logvar, beta=0.5, node_mu=qm, node_logvar=qlv,
@@ -142,18 +136,15 @@ def test_soft_clamp_bounds_log_variances() -> None:
                                atol=1e-3, rtol=0)
 
 
-@pytest.mark.parametrize("local", [True, False])
-def test_every_parameter_gets_a_gradient_with_node_latents(local: bool) -> None:
+def test_every_parameter_gets_a_gradient_with_node_latents() -> None:
     torch.manual_seed(0)
     batch = random_batch()
     enc = TreeEncoder(FULL.dim, 32, 8, node_latent_dim=DW, num_types=3)
-    dec = TreeDecoder(FULL.dim, 3, 32, 8, type_mask=FULL.type_mask(), inputs="types",
-                      node_latent_dim=DW, local_heads=local)
+    dec = TreeDecoder(FULL.dim, 3, 32, 8, DW, type_mask=FULL.type_mask())
     sched = tree_schedule(batch)
     mu, logvar = enc(batch, sched)
     wm, wlv = enc.node_readout(*enc.messages(batch, sched), sched, batch.node_type)
-    out = dec.teacher_forcing(reparametrize(mu, logvar), batch, sched,
-                              w=reparametrize(wm, wlv))
+    out = dec.teacher_forcing(reparametrize(mu, logvar), batch, reparametrize(wm, wlv), sched)
     vae_loss(out, batch, mu, logvar, 1.0, wm, wlv)["loss"].backward()
     for name, p in [*enc.named_parameters(), *dec.named_parameters()]:
         assert p.grad is not None and bool(p.grad.abs().sum() > 0), name

@@ -13,7 +13,13 @@ from torch_geometric.data import Batch
 
 from robovae.cli import main
 from robovae.data.datamodule import RobotDataModule
-from robovae.evaluate.callbacks import ReconstructionMetrics, score_split
+from robovae.errors import RobovaeError
+from robovae.evaluate.callbacks import (
+    ReconstructionMetrics,
+    score_split,
+    split_metrics_from_z,
+)
+from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
 from tests.conftest import REPO
 
@@ -80,29 +86,22 @@ def test_node_latent_api(trained_nodes):
     g = [[(s.num_nodes, float(s.x.sum())) for s in
           model.sample(4, generator=torch.Generator().manual_seed(k))] for k in (0, 0, 1)]
     assert g[0] == g[1] and g[0] != g[2]
-    plain_mu, plain_nodes = RoboVAE(hidden_dim=32, latent_dim=8).encode_nodes(batch)
-    assert [n.shape for n in plain_nodes] == [(r.num_nodes, 0) for r in robots]
 
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_node_latents_reconstruct_an_unseen_robot(tmp_path, menagerie_dir, cache_root, seed):
-    """Trained on Go1 and A1 only, both models rebuild Go2's tree; with node latents its
-    features are several times closer (the 2-robot experiment of docs/results.md, small)."""
+    """Trained on Go1 and A1 only, the model rebuilds Go2's tree, and its features closer
+    than half the FRE of a one-latent model (0.48 in the 2-robot experiment of
+    docs/results.md, which scores Go1's own features as 0.55)."""
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
                          train_names=["go1", "a1"], val_names=["go2"], test_names=["go2"],
-                         batch_size=2)
-    fre = {}
-    for nodes in (0, 32):
-        L.seed_everything(seed)
-        extra = {"local_heads": True, "decoder_inputs": "types"} if nodes else {}
-        model = RoboVAE(hidden_dim=32, latent_dim=16, beta=1e-4, lr=3e-3, feature_shift=1.0,
-                        feature_noise=0.5, node_latent_dim=nodes, **extra)
-        _trainer(tmp_path, 300, check_val_every_n_epoch=10**6, gradient_clip_val=10).fit(model,
-                                                                                       dm)
-        (res,) = score_split(model.eval(), dm.test_set)
-        assert res.exact
-        fre[nodes] = res.fre
-    assert fre[32] < 0.5 * fre[0], fre
+                         batch_size=2, feature_shift=1.0, feature_noise=0.5)
+    L.seed_everything(seed)
+    model = RoboVAE(hidden_dim=32, latent_dim=16, beta=1e-4, lr=3e-3, node_latent_dim=32)
+    _trainer(tmp_path, 300, check_val_every_n_epoch=10**6, gradient_clip_val=10).fit(model, dm)
+    (res,) = score_split(model.eval(), dm.test_set)
+    assert res.exact
+    assert res.fre < 0.24, res.fre
 
 
 def test_beta_annealing():
@@ -171,3 +170,45 @@ def test_reconstruction_callback_logs_per_robot(trained, tmp_path):
     assert {"test/RA", "test/RA_true", "test/exact"} <= set(trainer.callback_metrics)
     assert "test/RA/gym_hopper" in trainer.callback_metrics
     assert len(cb.last["test"]) == 2
+
+
+def test_checkpoints_of_earlier_versions_load_or_are_refused(trained_nodes, tmp_path):
+    """A checkpoint written before the ablation switches and the augmentation knobs left the
+    model loads when its model is the current one; a removed variant is refused in one line
+    that says how to retrain."""
+    model, dm, ckpt = trained_nodes
+    data = torch.load(ckpt, weights_only=True)
+    data["hyper_parameters"].update(topo_context=True, node_structure=True, local_heads=True,
+                                    latent_inputs=False, decoder_inputs="types",
+                                    feature_shift=1.0, feature_noise=0.5, tree_surgery=0.5,
+                                    surgery_ops=3, augment_until=1.0)
+    old = tmp_path / "old.ckpt"
+    torch.save(data, old)
+    robot = dm.test_set[0]
+    assert torch.equal(load_model(old).reconstruct(robot)[0].x, model.reconstruct(robot)[0].x)
+    data["hyper_parameters"].update(local_heads=False, decoder_inputs="features")
+    torch.save(data, old)
+    with pytest.raises(RobovaeError, match="removed.*local_heads=False.*retrain") as e:
+        load_model(old)
+    assert "\n" not in str(e.value)
+
+
+def test_from_z_reconstruction_and_latent_costs(trained_nodes):
+    """From z alone: z = mu and every node latent at its conditional-prior mean; the latents'
+    costs in nats: KL_z is the Gaussian KL of q(z | G), KL_nodes positive, and the negative
+    ELBO per node covers both."""
+    model, dm, _ = trained_nodes
+    robots = list(dm.test_set)
+    batch = Batch.from_data_list(robots)
+    mu, logvar = model.encode(batch)
+    for a, b in zip(model.reconstruct(batch, from_z=True), model.decode(mu, clamp=False)):
+        assert torch.equal(a.parent, b.parent) and torch.equal(a.x, b.x)
+    costs = model.latent_costs(batch)
+    torch.testing.assert_close(costs["kl_z"], -0.5 * (1 + logvar - mu**2 - logvar.exp()).sum(1))
+    assert costs["nodes"].tolist() == [r.num_nodes for r in robots]
+    assert bool((costs["kl_nodes"] > 0).all())
+    total = costs["nelbo_per_node"] * costs["nodes"]
+    assert bool((total > costs["kl_z"] + costs["kl_nodes"]).all())
+    m = split_metrics_from_z(model, robots)
+    assert set(m) == {"RA_z", "RA_true_z", "exact_z", "FRE_z", "KL_z", "KL_nodes", "NELBO_node"}
+    assert 0 <= m["RA_z"] <= 1 and m["KL_z"] == pytest.approx(float(costs["kl_z"].mean()))

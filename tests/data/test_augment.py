@@ -1,5 +1,5 @@
-"""Training-time augmentation: feature jitter (``feature_shift`` / ``feature_noise``) and tree
-surgery (``tree_surgery``): what they change and what not."""
+"""Training-batch augmentation (robovae.data.augment): feature jitter and tree surgery, what
+they change and what not, and how the datamodule applies them."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 import torch
 from torch_geometric.data import Batch
 
+from robovae.data.augment import SURGERY_OPS, FeatureJitter, TreeSurgery, tree_surgery
 from robovae.data.features import get_feature_set
 from robovae.data.graph import children, tree_data
-from robovae.model.augment import SURGERY_OPS, jitter_features, tree_surgery
 from robovae.model.vae import RoboVAE
 
 FS = get_feature_set("paper34")
@@ -27,16 +27,21 @@ def _batch(n_graphs: int = 3) -> Batch:
     return Batch.from_data_list(graphs)
 
 
-def test_zero_std_is_identity():
+def _jitter(b: Batch, shift: float, noise: float, seed: int = 0) -> torch.Tensor:
+    j = FeatureJitter(FS, shift, noise)
+    j.seed(seed)
+    return j(b.clone()).x_jitter
+
+
+def test_zero_std_is_no_jitter():
     b = _batch()
-    assert jitter_features(b.x, b.x_mask, b.batch, 3, 0.0, 0.0) is b.x
+    assert not _jitter(b, 0.0, 0.0).any()
+    assert torch.equal(FeatureJitter(FS, 1.0, 1.0)(b.clone()).x, b.x)  # x itself is kept
 
 
 def test_shift_is_per_robot_and_column_and_keeps_foreign_columns():
     b = _batch()
-    x = torch.zeros_like(b.x)
-    out = jitter_features(x, b.x_mask, b.batch, 3, shift=1.0, noise=0.0,
-                          generator=torch.Generator().manual_seed(0))
+    out = _jitter(b, shift=1.0, noise=0.0)
     assert (out[~b.x_mask] == 0).all()  # foreign columns stay zero
     for g in range(3):
         rows = out[b.batch == g]
@@ -46,54 +51,67 @@ def test_shift_is_per_robot_and_column_and_keeps_foreign_columns():
             assert torch.allclose(sel, sel[:1].expand_as(sel))
         assert rows[own].abs().sum() > 0
     assert not torch.allclose(out[b.batch == 0], out[b.batch == 1])
+    assert torch.equal(out, _jitter(b, 1.0, 0.0))  # the seed fixes the draw
+    assert not torch.equal(out, _jitter(b, 1.0, 0.0, seed=1))
 
 
 def test_categorical_columns_are_kept():
-    b = _batch(1)
-    keep = torch.zeros(FS.dim, dtype=torch.bool)
-    keep[:5] = True
-    out = jitter_features(b.x, b.x_mask, b.batch, 1, 1.0, 1.0, keep=keep)
-    assert torch.equal(out[:, :5], b.x[:, :5])
-    assert not torch.equal(out[:, 5:], b.x[:, 5:])
+    fs = get_feature_set("full")
+    cat = fs.column_transform("categorical")
+    assert cat.any()
+    parent, types = [-1, 0, 1, 1], [1, 0, 2, 2]
+    b = Batch.from_data_list([tree_data(parent, types, torch.rand(4, fs.dim), fs)])
+    j = FeatureJitter(fs, 1.0, 1.0)
+    out = j(b).x_jitter
+    assert not out[:, cat].any() and out[:, ~cat].any()
 
 
-def test_model_jitters_in_training_only():
+def test_model_adds_the_jitter_after_normalising():
     b = _batch(2)
-    model = RoboVAE(hidden_dim=16, latent_dim=4, feature_shift=0.5, feature_noise=0.1)
-    x = torch.cat([d.x for d in b.to_data_list()])
-    model.normalizer.fit(x, b.node_type)
-    model.eval()
-    a = model(b, sample=False)["loss"]
-    assert torch.equal(a, model(b, sample=False)["loss"])  # eval: deterministic, no jitter
-    model.train()
-    g1, g2 = (torch.Generator().manual_seed(1) for _ in range(2))
-    t1, t2 = model(b, generator=g1)["loss"], model(b, generator=g2)["loss"]
-    assert torch.equal(t1, t2)  # the batch generator drives the jitter: reproducible
-    assert not torch.equal(t1, model(b, generator=torch.Generator().manual_seed(2))["loss"])
+    model = RoboVAE(hidden_dim=16, latent_dim=4, node_latent_dim=4)
+    model.normalizer.fit(b.x, b.node_type)
+    plain = model.normalized(b).x
+    jittered = FeatureJitter(FS, 0.5, 0.1)(b.clone())
+    torch.testing.assert_close(model.normalized(jittered).x, plain + jittered.x_jitter)
 
 
-def test_augmentation_stops_after_augment_until():
-    """``augment_until=0.5`` of 4 epochs: epochs 0-1 perturb the features, epochs 2-3 train on
-    the true ones."""
+def test_datamodule_augments_training_batches_only_and_by_epoch_and_batch(tmp_path):
+    """Training batches carry a jitter drawn from (seed, epoch, batch); validation batches
+    none; the same seed draws the same jitter in a second run."""
     import lightning as L
-    from torch_geometric.loader import DataLoader
 
-    b = _batch(2)
-    model = RoboVAE(hidden_dim=16, latent_dim=4, feature_shift=0.5, augment_until=0.5)
-    model.normalizer.fit(torch.cat([d.x for d in b.to_data_list()]), b.node_type)
-    flags = []
+    from robovae.data.datamodule import RobotDataModule
 
-    class Record(L.Callback):
-        def on_train_epoch_start(self, trainer, pl_module):
-            flags.append(pl_module.augmenting())
+    def run(seed: int) -> tuple[list, list]:
+        train, val = [], []
 
-    trainer = L.Trainer(max_epochs=4, logger=False, enable_checkpointing=False,
-                        enable_progress_bar=False, enable_model_summary=False,
-                        callbacks=[Record()])
-    trainer.fit(model, DataLoader(b.to_data_list(), batch_size=2))
-    assert flags == [True, True, False, False]
-    assert not RoboVAE(hidden_dim=16, latent_dim=4).augmenting()  # nothing to augment
-    assert RoboVAE(hidden_dim=16, latent_dim=4, feature_noise=0.1).augmenting()  # no trainer
+        class Record(L.Callback):
+            def on_train_batch_start(self, trainer, pl_module, batch, batch_idx):
+                train.append((trainer.current_epoch, batch_idx, batch.num_nodes,
+                              batch.x_jitter.clone()))
+
+            def on_validation_batch_start(self, trainer, pl_module, batch, batch_idx,
+                                          dataloader_idx=0):
+                val.append(getattr(batch, "x_jitter", None))
+
+        L.seed_everything(seed)
+        dm = RobotDataModule(["synthetic:n=6,nodes=5,dim=5,seed=0"], root=str(tmp_path),
+                             val_fraction=0.2, test_fraction=0.0, batch_size=2,
+                             feature_shift=1.0, feature_noise=0.5, tree_surgery=0.5)
+        model = RoboVAE(feature_set="random5", hidden_dim=8, latent_dim=4, node_latent_dim=2)
+        L.Trainer(max_epochs=2, logger=False, enable_checkpointing=False,
+                  enable_progress_bar=False, enable_model_summary=False,
+                  num_sanity_val_steps=0, callbacks=[Record()]).fit(model, dm)
+        return train, val
+
+    a, val = run(0)
+    per_epoch = [[i for e, i, _, _ in a if e == epoch] for epoch in (0, 1)]
+    assert per_epoch[0] == per_epoch[1] == list(range(len(per_epoch[0]))) and per_epoch[0]
+    assert val and all(v is None for v in val)
+    b, _ = run(0)
+    assert all(x[2] == y[2] and torch.equal(x[3], y[3]) for x, y in zip(a, b, strict=True))
+    c, _ = run(1)
+    assert not all(x[2] == y[2] and torch.equal(x[3], y[3]) for x, y in zip(a, c, strict=True))
 
 
 # --- tree surgery ----------------------------------------------------------------------------
@@ -183,15 +201,11 @@ def test_unknown_op_is_refused():
         tree_surgery(_robots(), FS, 1.0, 1, 64, random.Random(0), ops=("mirror",))
 
 
-def test_model_rebuilds_trees_in_training_only():
-    robots = _robots()
-    b = Batch.from_data_list(robots)
-    model = RoboVAE(hidden_dim=16, latent_dim=4, tree_surgery=1.0, surgery_ops=2)
-    model.normalizer.fit(b.x, b.node_type)
-    model.eval()
-    assert torch.equal(model(b, sample=False)["loss"], model(b, sample=False)["loss"])
-    model.train()
-    losses = [model(b, generator=torch.Generator().manual_seed(k))["loss"] for k in (1, 1, 2)]
-    assert torch.equal(losses[0], losses[1])  # the batch generator drives the surgery
-    assert not torch.equal(losses[0], losses[2])
-    assert all(torch.isfinite(t) for t in losses)
+def test_surgery_transform_rebuilds_a_batch_by_its_seed():
+    b = Batch.from_data_list(_robots())
+    s = TreeSurgery(FS, 1.0, 2, 64)
+    shapes = []
+    for seed in (1, 1, 2):
+        s.seed(seed)
+        shapes.append([_shape(d) for d in s(b).to_data_list()])
+    assert shapes[0] == shapes[1] and shapes[0] != shapes[2]
