@@ -31,7 +31,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import capture_mujoco_warnings, drop_missing_assets
+from robovae.data.loading import capture_mujoco_warnings, drop_missing_assets
 
 _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_BADQACC: "bad qacc",

@@ -38,7 +38,7 @@ import numpy as np
 
 from robovae.data.features import FeatureSet
 from robovae.data.graph import RobotData
-from robovae.data.mjcf import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules

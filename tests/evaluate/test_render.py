@@ -16,7 +16,7 @@ from PIL import Image
 
 from robovae.data.features import get_feature_set
 from robovae.data.graph import tree_data
-from robovae.data.mjcf import load_robot
+from robovae.data.loading import load_robot
 from robovae.data.zoo import zoo_files
 from robovae.evaluate import render as R
 from robovae.evaluate.camera import auto_camera, camera_axes, robot_bounds, robot_points
