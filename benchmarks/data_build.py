@@ -50,10 +50,13 @@ class _Clock:
 
 def _row(step: str, n: int, c: _Clock, jobs: int) -> dict:
     """Wall and CPU time; ``2-core min per 100k``: CPU time / jobs scaled to 100,000 robots,
-    the wall time an otherwise idle machine with ``jobs`` cores would need."""
-    return {"step": step, "robots": n, "wall s": f"{c.wall:.1f}", "cpu s": f"{c.cpu:.1f}",
+    the wall time an otherwise idle machine with ``jobs`` cores would need. Printed at once
+    (a long run keeps the rows it finished)."""
+    row = {"step": step, "robots": n, "wall s": f"{c.wall:.1f}", "cpu s": f"{c.cpu:.1f}",
             "cpu ms/robot": f"{1e3 * c.cpu / n:.2f}",
             f"{jobs}-core min per 100k": f"{c.cpu / jobs / n * 100_000 / 60:.1f}"}
+    print(" | ".join(f"{k}: {v}" for k, v in row.items()), flush=True)
+    return row
 
 
 def coverage(n: int, seed: int, jobs: int) -> str:
