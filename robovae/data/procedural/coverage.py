@@ -74,7 +74,7 @@ def coverage_rows(robots: Mapping[str, tuple[str, Path]], n: int = 2000, seed: i
         rows = [shape_stats(g) for g in graphs]
         stats[kind] = {"ranges": {k: (min(r[k] for r in rows), max(r[k] for r in rows))
                                   for k in rows[0]},
-                       "shapes": {tree_shape(_links_and_joints(g)) for g in graphs}}
+                       "shapes": {tree_shape(links_and_joints(g)) for g in graphs}}
     out = []
     for name, (kind, path) in robots.items():
         g = mjcf_to_graph(path, "full")
@@ -86,13 +86,13 @@ def coverage_rows(robots: Mapping[str, tuple[str, Path]], n: int = 2000, seed: i
             row[k] = f"{v} ({lo}-{hi})"
         row["in range"] = "yes" if all(ranges[k][0] <= v <= ranges[k][1]
                                        for k, v in s.items()) else "no"
-        row["same tree"] = "yes" if tree_shape(_links_and_joints(g)) in stats[kind]["shapes"] \
+        row["same tree"] = "yes" if tree_shape(links_and_joints(g)) in stats[kind]["shapes"] \
             else "no"
         out.append(row)
     return out
 
 
-def _links_and_joints(data: RobotData) -> RobotData:
+def links_and_joints(data: RobotData) -> RobotData:
     """The ``paper34``-style tree (geom leaves dropped) of a ``full`` graph: geoms are leaves
     listed under their link, so dropping them keeps a pre-order tree."""
     keep = (data.node_type != 2).nonzero().view(-1)
