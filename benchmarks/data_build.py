@@ -28,6 +28,7 @@ from pathlib import Path
 
 from robovae.data.dataset import RobotDataset
 from robovae.data.procedural import parse_procedural, procedural_graphs, write_procedural
+from robovae.data.procedural.coverage import MENAGERIE_CLASSES, coverage_rows
 from robovae.evaluate.tables import format_table
 
 
@@ -49,10 +50,26 @@ class _Clock:
 
 def _row(step: str, n: int, c: _Clock, jobs: int) -> dict:
     """Wall and CPU time; ``2-core min per 100k``: CPU time / jobs scaled to 100,000 robots,
-    the wall time an otherwise idle machine with ``jobs`` cores would need."""
-    return {"step": step, "robots": n, "wall s": f"{c.wall:.1f}", "cpu s": f"{c.cpu:.1f}",
+    the wall time an otherwise idle machine with ``jobs`` cores would need. Printed at once
+    (a long run keeps the rows it finished)."""
+    row = {"step": step, "robots": n, "wall s": f"{c.wall:.1f}", "cpu s": f"{c.cpu:.1f}",
             "cpu ms/robot": f"{1e3 * c.cpu / n:.2f}",
             f"{jobs}-core min per 100k": f"{c.cpu / jobs / n * 100_000 / 60:.1f}"}
+    print(" | ".join(f"{k}: {v}" for k, v in row.items()), flush=True)
+    return row
+
+
+def coverage(n: int, seed: int, jobs: int) -> str:
+    """The coverage table of the Menagerie robots (``ROBOVAE_SHARED_MENAGERIE`` or
+    ``../shared/menagerie``): their statistics and, in brackets, the range of their class."""
+    folder = Path(os.environ.get("ROBOVAE_SHARED_MENAGERIE", "../shared/menagerie"))
+    robots = {}
+    for name, kind in MENAGERIE_CLASSES.items():
+        files = sorted(f for f in (folder / name).glob("*.xml") if "scene" not in f.name)
+        if files:
+            robots[name] = (kind, files[0])
+    rows = coverage_rows(robots, n=n, seed=seed, jobs=jobs)
+    return format_table(rows, list(rows[0]))
 
 
 def main() -> None:
@@ -63,6 +80,8 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--feature-set", default="paper34")
     p.add_argument("--stages", action="store_true", help="also time the graphs alone")
+    p.add_argument("--coverage", type=int, default=0, metavar="N",
+                   help="also: do N robots per class cover the trees of ../shared/menagerie?")
     p.add_argument("--root", default=None, help="work folder (default: a temp folder)")
     args = p.parse_args()
     root = Path(args.root or tempfile.mkdtemp(prefix="robovae_bench_"))
@@ -110,6 +129,9 @@ def main() -> None:
     print(format_table(mix, ["class", "robots", "share", "nodes min", "nodes mean",
                              "nodes max"]))
     print(f"skipped: {len(ds.report['skipped'])}, duplicates: {len(ds.report['duplicates'])}")
+    if args.coverage:
+        print()
+        print(coverage(args.coverage, args.seed, args.jobs))
     if args.root is None:
         shutil.rmtree(root, ignore_errors=True)
 

@@ -21,6 +21,8 @@ from robovae.errors import RobovaeError
 from robovae.evaluate.tables import format_table
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
+#: Robots ``robovae data`` lists (the build report holds them all).
+MAX_TABLE_ROWS = 200
 
 
 def cmd_data(args: argparse.Namespace) -> int:
@@ -35,11 +37,15 @@ def cmd_data(args: argparse.Namespace) -> int:
         rows.append({**r, "warnings": (w[:70] + "…") if len(w) > 71 else w})
     cols = ["name", "links", "joints"] + (["geoms"] if ds.feature_set == "full" else []) + \
         ["depth", "limbs", "features", "warnings"]
-    print(format_table(rows, cols))
+    print(format_table(rows[:MAX_TABLE_ROWS], cols))
+    if len(rows) > MAX_TABLE_ROWS:
+        print(f"... {len(rows) - MAX_TABLE_ROWS} more robots: every row is in "
+              f"{ds.processed_paths[1]}")
     rep = ds.report
     print(f"\n{len(rows)} robots, feature set {ds.feature_set}, {len(rep['skipped'])} skipped, "
           f"{len(rep['duplicates'])} duplicates; cache {ds.processed_paths[0]}")
-    for line in rep["warnings"] + rep["duplicates"]:
+    notes = rep["warnings"] + rep["duplicates"]
+    for line in notes[:MAX_TABLE_ROWS]:
         print(f"note: {line}")
     for line in rep["skipped"]:
         print(line, file=sys.stderr)

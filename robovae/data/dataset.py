@@ -13,7 +13,6 @@ import json
 import logging
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import torch
@@ -25,6 +24,7 @@ from robovae.data.graph import RobotData, limbs
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.data.procedural.batch import procedural_graphs
 from robovae.data.sources import resolve_sources
+from robovae.data.workers import process_pool
 from robovae.errors import RobotFileError, RobovaeError
 
 log = logging.getLogger("robovae")
@@ -151,7 +151,7 @@ class RobotDataset(InMemoryDataset):
         results: list[tuple[dict | None, str | None]] = []
         if self.jobs > 1 and len(items) >= PARALLEL_MIN_FILES:
             chunk = max(1, min(64, len(items) // (self.jobs * 8)))
-            with ProcessPoolExecutor(self.jobs) as pool:
+            with process_pool(self.jobs) as pool:
                 for r in pool.map(_load_one, items, chunksize=chunk):
                     results.append(r)
                     bar.update()

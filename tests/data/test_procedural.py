@@ -25,6 +25,7 @@ from robovae.data.procedural import (
     procedural_spec,
     write_procedural,
 )
+from robovae.data.procedural.coverage import links_and_joints, shape_stats, tree_shape
 from robovae.data.procedural.robots import draw_class
 from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import standing_test
@@ -254,3 +255,20 @@ def test_write_skips_existing_files_and_is_atomic(tmp_path: Path) -> None:
     again = write_procedural(tmp_path, 8, seed=3, classes=["quadruped", "humanoid"], workers=1)
     assert again[:6] == paths and paths[0].read_text() == "keep me"
     assert sorted(tmp_path.iterdir()) == sorted(again)  # no temporary files left behind
+
+
+MENAGERIE = Path(__file__).resolve().parents[2].parent / "shared" / "menagerie"
+
+
+@pytest.mark.skipif(not (MENAGERIE / "unitree_go2" / "go2.xml").is_file(),
+                    reason="../shared/menagerie not present")
+def test_quadrupeds_have_the_real_quadruped_tree() -> None:
+    go2 = mjcf_to_graph(MENAGERIE / "unitree_go2" / "go2.xml", "full")
+    quad = model_to_graph(procedural_spec(0, "quadruped").compile(), "full")
+    assert shape_stats(quad) == shape_stats(go2) == {"nodes": 26, "links": 13, "joints": 13,
+                                                      "dof": 18, "limbs": 4}
+    assert tree_shape(links_and_joints(quad)) == tree_shape(links_and_joints(go2))
+    assert tree_shape(links_and_joints(quad)) != tree_shape(
+        links_and_joints(model_to_graph(procedural_spec(0, "hexapod").compile(), "full")))
+    with pytest.raises(ValueError):
+        shape_stats(model_to_graph(procedural_spec(0, "quadruped").compile(), "paper34"))

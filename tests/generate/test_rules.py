@@ -164,7 +164,8 @@ def test_one_hot():
 
 
 def test_joint_type_valid():
-    d = quadruped("full")
+    # dm_control's humanoid: free root, bodies with two and three hinges
+    d = real_graph(str(dict(zoo_files()[0])["dmc_humanoid"]), "full").clone()
     free = np.eye(4)[JOINT_TYPES.index("free")]
     ball = np.eye(4)[JOINT_TYPES.index("ball")]
     j = nodes(d, JOINT)[1]

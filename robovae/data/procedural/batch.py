@@ -16,11 +16,9 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-import warnings
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import as_completed
 from dataclasses import dataclass
-from multiprocessing import get_all_start_methods, get_context
 from pathlib import Path
 
 import torch
@@ -35,6 +33,7 @@ from robovae.data.procedural.robots import (
     draw_class,
     procedural_spec,
 )
+from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
 
 #: Most robots one ``procedural:`` source may ask for.
@@ -122,13 +121,6 @@ def _graph_batch(jobs: list[tuple[int, str]], feature_set: str) -> list[dict]:
     return out
 
 
-def _pool(workers: int) -> ProcessPoolExecutor:
-    # fork where available: workers only use numpy, mujoco and torch tensors already imported,
-    # and unlike spawn it works from unguarded scripts and notebooks
-    method = "fork" if "fork" in get_all_start_methods() else "spawn"
-    return ProcessPoolExecutor(workers, mp_context=get_context(method))
-
-
 def _run(fn, jobs: list, args: tuple, workers: int, progress: bool, desc: str) -> list:
     """``fn(chunk, *args)`` over chunks of ``jobs`` in ``workers`` processes, results in order."""
     from tqdm.auto import tqdm
@@ -144,15 +136,11 @@ def _run(fn, jobs: list, args: tuple, workers: int, progress: bool, desc: str) -
     chunk = max(16, min(500, math.ceil(len(jobs) / (8 * workers))))
     chunks = [jobs[i:i + chunk] for i in range(0, len(jobs), chunk)]
     results: list = [None] * len(chunks)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*fork.*", category=DeprecationWarning)
-        with _pool(workers) as pool:
-            futures = {pool.submit(fn, c, *args): k for k, c in enumerate(chunks)}
-            from concurrent.futures import as_completed
-
-            for f in as_completed(futures):
-                results[futures[f]] = f.result()
-                bar.update(len(chunks[futures[f]]))
+    with process_pool(workers) as pool:
+        futures = {pool.submit(fn, c, *args): k for k, c in enumerate(chunks)}
+        for f in as_completed(futures):
+            results[futures[f]] = f.result()
+            bar.update(len(chunks[futures[f]]))
     bar.close()
     return [r for part in results for r in part]
 

@@ -44,6 +44,7 @@ def sample(s: Sampler) -> tuple[Part, bool]:
             t_vec = (u[0] * tibia * math.sin(out), u[1] * tibia * math.sin(out),
                      -tibia * math.cos(out))
             t = f.add(Part(f"{name}_tibia", f_vec, [s.hinge(axis, (-lim, lim), gear=load)]))
-            t.geoms.append(capsule((0.0, 0.0, 0.0), t_vec, 0.7 * radius, 0.7 * m_seg))
+            t.geoms.append(capsule((0.0, 0.0, 0.0), t_vec, min(0.7 * radius, foot / 1.5),
+                                   0.7 * m_seg))
             t.geoms.append(Geom("sphere", 0.1 * m_seg, foot, pos=t_vec))
     return torso, True

@@ -2,7 +2,8 @@
 
 Each leg: a hip body on an abduction hinge (x) whose capsule reaches sideways to the thigh
 axis, a thigh on a flexion hinge (y) tilted ``thigh_tilt`` from vertical, a calf on a knee
-hinge (y) that brings the foot sphere back under the hip. Knees point back, front, inward
+hinge (y) that brings the foot sphere back under the hip; the foot is at least 1.5 times as
+thick as the calf, so it is the lowest point. Knees point back, front, inward
 (front back, rear front) or outward. The tree is the 26-node quadruped of real robots: free
 joint, torso, 4 × (3 hinges + 3 bodies).
 """
@@ -48,6 +49,6 @@ def sample(s: Sampler) -> tuple[Part, bool]:
         dx = -t_vec[0]
         c_vec = (dx, 0.0, -math.sqrt(max(calf ** 2 - dx ** 2, 0.25 * calf ** 2)))
         cf = th.add(Part(f"{name}_calf", t_vec, [s.hinge("y", knee, gear=1.5 * load)]))
-        cf.geoms.append(capsule((0.0, 0.0, 0.0), c_vec, 0.5 * radius, masses[2]))
+        cf.geoms.append(capsule((0.0, 0.0, 0.0), c_vec, min(0.5 * radius, foot / 1.5), masses[2]))
         cf.geoms.append(Geom("sphere", 0.1 * masses[2], foot, pos=c_vec))
     return torso, True
