@@ -36,11 +36,22 @@ def stick(lean: float = 0.03, actuated: bool = False) -> mujoco.MjSpec:
 def test_a_quadruped_stands_and_a_top_heavy_stick_falls() -> None:
     quad = standing(procedural_spec(2, "quadruped"))
     assert quad.floating and quad.stands and quad.up and quad.upright and not quad.unstable
-    assert quad.fell_at is None and quad.seconds == pytest.approx(3.0, abs=0.01)
+    assert quad.fell_at is None and quad.settled  # at rest after 1 s: stopped early
+    assert quad.seconds == pytest.approx(1.0, abs=0.01)
     assert quad.min_height_ratio >= 0.5 and quad.max_tilt <= 45
     fell = standing(stick())
     assert fell.floating and fell.stands is False and fell.upright is False
     assert 0 < fell.fell_at < 3.0 and fell.max_tilt > 45
+
+
+def test_stopping_early_does_not_change_the_verdict() -> None:
+    """At rest or fallen, the rest of the 3 s cannot change the outcome."""
+    for robot in [procedural_spec(s, k) for s in range(3) for k in ("quadruped", "humanoid")]:
+        early, full = standing(robot), standing(robot, rest=0.0, chunk_seconds=3.0)
+        assert full.seconds == pytest.approx(3.0, abs=0.01) and not full.settled
+        assert early.stands == full.stands and early.fell_at == full.fell_at
+        if early.stands:
+            assert early.height_ratio == pytest.approx(full.height_ratio, abs=0.01)
 
 
 def test_standing_accepts_a_model_with_a_floor_and_leaves_it_unchanged() -> None:

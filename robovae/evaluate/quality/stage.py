@@ -126,9 +126,13 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
     Raises:
         RobotFileError: the file does not load (one line).
     """
-    spec = robot.copy() if isinstance(robot, mujoco.MjSpec) else load_robot(robot).spec
-    with capture_mujoco_warnings():
-        model = spec.compile()
+    if isinstance(robot, mujoco.MjSpec):
+        spec = robot.copy()
+        with capture_mujoco_warnings():
+            model = spec.compile()
+    else:
+        loaded = load_robot(robot)
+        spec, model = loaded.spec, loaded.model
     if not _has_floor(model):
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
