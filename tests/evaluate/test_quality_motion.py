@@ -10,7 +10,7 @@ import pytest
 from robovae.data.procedural import ProceduralConfig, procedural_spec
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality import gait, gait_speed, stage, standing
-from robovae.evaluate.quality.stage import prepare
+from robovae.evaluate.quality.stage import prepare, rest_pose
 
 FAST = {"rollouts": 8, "seconds": 2.0}
 
@@ -95,3 +95,18 @@ def test_stage_measures_the_robot_not_the_floor() -> None:
     # box around the stick: 0.2 m wide (ball), from z = 0 (foot) to 1.15 m (ball top)
     assert st.extent == pytest.approx(math.sqrt(0.2 ** 2 + 0.2 ** 2 + 1.15 ** 2), rel=1e-6)
     assert st.free and st.floor_z == pytest.approx(0.0, abs=1e-9)
+
+
+def test_rest_pose_is_the_home_keyframe_within_joint_ranges(menagerie_dir) -> None:
+    go2 = menagerie_dir / "unitree_go2" / "go2.xml"
+    model = stage(go2).model
+    home = model.key_qpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")]
+    assert (rest_pose(model) == home).all()
+    # Go2's qpos0 bends its knees outside their range: held at qpos0 it would fold over
+    assert model.qpos0[9] > model.jnt_range[3, 1]
+    assert standing(go2).stands
+    spec = stick(actuated=True)
+    spec.joints[1].range = [0.5, 1.0]
+    spec.joints[1].limited = mujoco.mjtLimited.mjLIMITED_TRUE
+    m = spec.compile()
+    assert m.qpos0[7] == 0 and rest_pose(m)[7] == m.jnt_range[1, 0] > 0  # clipped into range

@@ -4,22 +4,19 @@ processes with a progress bar.
 :func:`measure` loads and compiles the robot once (a floor is added when it has none,
 :func:`~robovae.evaluate.quality.stage.prepare`) and runs on that model:
 
-=========================== ==========================================================
-``bodies dof mass limbs``   counts (:func:`~robovae.evaluate.quality.symmetry.anatomy`)
-``pairs symmetric one_limb`` mirrored limb pairs
-``judged detached``         bodies judged / detached
-``all_attached``            no detached body (:mod:`~robovae.evaluate.quality.attachment`)
-``detached_share``          detached / judged
-``penetration``             deepest self-penetration at rest / extent
-``self_penetrating``        a contact deeper than 1 % of the extent
-``floating stands``         standing test (:mod:`~robovae.evaluate.quality.standing`;
-                            ``stands`` None when not floating)
-``gait_speed``              with ``locomotion``: best gait speed, extents/s
-                            (:mod:`~robovae.evaluate.quality.locomotion`)
-``d_<descriptor>``          graph descriptors (:data:`~robovae.evaluate.descriptors.
-                            VECTOR_DESCRIPTORS`, ``paper34`` graph of the model)
-``t_<measure>``             seconds each measure took
-=========================== ==========================================================
+- ``bodies``, ``dof``, ``mass``, ``limbs``: counts
+  (:func:`~robovae.evaluate.quality.symmetry.anatomy`); ``pairs``, ``symmetric``,
+  ``one_limb``: mirrored limb pairs;
+- ``judged``, ``detached``, ``all_attached``, ``detached_share``: bodies judged / detached
+  (:mod:`~robovae.evaluate.quality.attachment`); ``penetration``: deepest self-penetration at
+  rest over the extent; ``self_penetrating``: a contact deeper than 1 % of the extent;
+- ``floating``, ``stands``, ``fell_at``, ``stand_tilt``: the standing test
+  (:mod:`~robovae.evaluate.quality.standing`; ``stands`` None when not floating);
+- ``gait_speed`` (extents/s), ``gait_speed_m_s``: with ``locomotion``, the best gait
+  (:mod:`~robovae.evaluate.quality.locomotion`);
+- ``d_<descriptor>``: graph descriptors (``VECTOR_DESCRIPTORS`` of
+  :mod:`robovae.evaluate.descriptors`, ``paper34`` graph of the model);
+- ``t_<measure>``: seconds each measure took.
 
 A robot that cannot be loaded or measured gets ``error`` (one line) instead: a bad robot never
 stops a population.

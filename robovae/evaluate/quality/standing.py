@@ -2,26 +2,28 @@
 
 The robot (:func:`~robovae.evaluate.quality.stage.stage`: a floor is added to a file or spec
 without one) is simulated for ``seconds`` (3 s) with every hinge and slide joint PD-held at its
-``qpos0`` value, from ``qpos0`` and zero velocity, in one ``mujoco.rollout`` call (the hold is
+rest pose (:func:`~robovae.evaluate.quality.stage.rest_pose`: a ``home`` keyframe, else
+``qpos0``, clipped into the joint ranges), from that pose and zero velocity, with
+``mujoco.rollout`` (the hold is
 part of the model, so no Python runs per step). A copy of the model is changed, never the
 caller's:
 
 - **hold**: stiffness ``kp = stiffness · m g L`` (total mass ``m``, extent ``L``: the base
   sags about ``1/stiffness`` rad under its full weight on a lever of its own size), capped at
-  ``0.1 I / dt²`` (``I`` the joint's inertia ``dof_M0`` at ``qpos0``, ``dt`` the time step, so
+  ``0.1 I / dt²`` (``I`` the joint's inertia ``dof_M0``, ``dt`` the time step, so
   that the explicit spring stays stable), critical damping ``kv = 2 sqrt(kp I)``, integrator
   ``implicitfast`` (damping implicit);
 - a joint driven by a stateless actuator of the robot (joint transmission, no activation) is
   held by that actuator turned into a position servo (gain ``kp``, bias ``-kp q - kv q̇``,
   gear 1) whose force is limited, with ``torque_limits``, by what the robot's own actuators
   can give on that joint (:func:`torque_limits`); other joints are held by a passive spring
-  and damper (``jnt_stiffness``, ``qpos_spring = qpos0``, ``dof_damping``), unlimited; the
+  and damper (``jnt_stiffness``, ``qpos_spring`` the rest pose, ``dof_damping``), unlimited; the
   robot's other actuators are switched off (zero gain and bias).
 
 Only floating-base robots (root body with a free joint) are tested. The robot **stands** when
 at every sample (every ``sample_dt``) its root stayed **up** — root height above the floor at
-least ``min_height`` (0.5) of its height above its own lowest point at ``qpos0`` — and
-**upright** — the root's up axis (the local direction that points up at ``qpos0``) within
+least ``min_height`` (0.5) of its height above its own lowest point at rest — and
+**upright** — the root's up axis (the local direction that points up at rest) within
 ``max_tilt`` (45°) of vertical — and the simulation stayed stable (finite, no MuJoCo
 instability warning: MuJoCo would silently reset the state). The root pose is read from the
 free joint's ``qpos`` (position and quaternion) at every sample.
@@ -42,7 +44,14 @@ import numpy as np
 from mujoco import rollout
 
 from robovae.data.mjcf import capture_mujoco_warnings
-from robovae.evaluate.quality.stage import MOVING, Robot, robot_points, stage, unstable
+from robovae.evaluate.quality.stage import (
+    MOVING,
+    Robot,
+    rest_pose,
+    robot_points,
+    stage,
+    unstable,
+)
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
 _GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
@@ -99,10 +108,13 @@ def torque_limits(model: mujoco.MjModel) -> dict[int, float]:
 
 
 def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
-                 limit_torques: bool = True) -> tuple[np.ndarray, int]:
-    """Change ``model`` in place so that every hinge/slide joint is PD-held at ``qpos0``
-    (module docstring). Returns the constant control vector that holds the robot (servo
-    targets ``qpos0``, zero elsewhere) and the number of torque-limited joints."""
+                 limit_torques: bool = True, pose: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, int]:
+    """Change ``model`` in place so that every hinge/slide joint is PD-held at ``pose``
+    (default ``qpos0``; module docstring). Returns the constant control vector that holds the
+    robot (servo targets from ``pose``, zero elsewhere) and the number of torque-limited
+    joints."""
+    pose = model.qpos0 if pose is None else pose
     limits = torque_limits(model) if limit_torques else {}
     mass = float(model.body_subtreemass[0])
     g = float(np.linalg.norm(model.opt.gravity)) or 9.81
@@ -129,7 +141,7 @@ def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
         a = servo.get(j)
         if a is None:
             model.jnt_stiffness[j] = kp
-            model.qpos_spring[qadr] = model.qpos0[qadr]
+            model.qpos_spring[qadr] = pose[qadr]
             model.dof_damping[dof] += kv
             continue
         model.actuator_biastype[a] = _BIAS_AFFINE
@@ -142,7 +154,7 @@ def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
         if model.actuator_forcelimited[a]:
             model.actuator_forcerange[a] = (-lim, lim)
             limited += 1
-        ctrl[a] = model.qpos0[qadr]
+        ctrl[a] = pose[qadr]
     return ctrl, limited
 
 
@@ -164,8 +176,10 @@ def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
     if not st.free:
         return StandResult(floating=False)
     model, root = st.model, st.root
-    ctrl, limited = hold_at_rest(model, st.extent, stiffness, limit_torques)
+    pose = rest_pose(model)
+    ctrl, limited = hold_at_rest(model, st.extent, stiffness, limit_torques, pose)
     data = mujoco.MjData(model)
+    data.qpos[:] = pose
     mujoco.mj_forward(model, data)
     h0 = float(data.xpos[root, 2] - robot_points(model, data, root)[:, 2].min())
     up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
