@@ -9,7 +9,8 @@ actuators with one open-loop gait per rollout,
 when unlimited), amplitude ``A_a ~ U[0, 1]`` and phase ``φ_a ~ U[0, 2π)`` per actuator and one
 frequency ``f ~ U[f_lo, f_hi]`` (0.5–3 Hz) per rollout. A fixed budget of ``rollouts`` (64)
 random gaits of ``seconds`` (4 s) each, drawn from ``numpy.random.default_rng(seed)``, runs in
-one ``mujoco.rollout`` call from ``qpos0`` (random search).
+one ``mujoco.rollout`` call from the robot's rest pose
+(:func:`~robovae.evaluate.quality.stage.rest_pose`) at rest (random search).
 
 The **speed** of a gait is the horizontal distance (m) the root body covers between
 ``settle · seconds`` (a quarter of the rollout: falling over or dropping onto the floor at the
@@ -32,7 +33,7 @@ import numpy as np
 from mujoco import rollout
 
 from robovae.data.mjcf import capture_mujoco_warnings
-from robovae.evaluate.quality.stage import Robot, stage
+from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
 __all__ = ["GaitResult", "gait", "gait_speed", "sinusoid_controls"]
 
@@ -97,6 +98,7 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     freq = rng.uniform(frequency[0], frequency[1], rollouts)
     ctrl = sinusoid_controls(model, amp, phase, freq, steps)
     data = mujoco.MjData(model)
+    data.qpos[:] = rest_pose(model)
     mujoco.mj_forward(model, data)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
