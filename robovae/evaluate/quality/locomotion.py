@@ -17,10 +17,11 @@ The **speed** of a gait is the horizontal distance (m) the root body covers betw
 start is not locomotion) and the end, divided by the time in between and by the robot's extent
 ``L`` (the diagonal of its bounding box at ``qpos0``): extents per second; any direction counts
 as forward (a generated robot has no designated front). Rollouts that go unstable (non-finite
-state, or MuJoCo resetting it) score 0. :func:`gait_speed` is the best speed over the budget. A
-robot without actuators scores 0. It is a random search: the number is a lower bound on what
-the body can do with such gaits, comparable between robots measured with the same budget and
-seed.
+state, or MuJoCo resetting it) or fall through the floor (root ending more than ``L`` below
+it: a robot without collision geoms) score 0 and count in ``GaitResult.unstable``.
+:func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0. It
+is a random search: the number is a lower bound on what the body can do with such gaits,
+comparable between robots measured with the same budget and seed.
 """
 
 from __future__ import annotations
@@ -66,11 +67,11 @@ def sinusoid_controls(model: mujoco.MjModel, amplitude: np.ndarray, phase: np.nd
     return mid + amplitude[:, None, :] * half * np.sin(arg)
 
 
-def _root_xy(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root: int
-             ) -> np.ndarray:
+def _root_pos(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root: int
+              ) -> np.ndarray:
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
-    return data.xpos[root, :2].copy()
+    return data.xpos[root].copy()
 
 
 def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
@@ -114,9 +115,12 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
         if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
             bad += 1
             continue
-        start = _root_xy(model, data, s[first, 1:1 + model.nq], root)
-        end = _root_xy(model, data, s[-1, 1:1 + model.nq], root)
-        speeds[r] = float(np.linalg.norm(end - start)) / span
+        start = _root_pos(model, data, s[first, 1:1 + model.nq], root)
+        end = _root_pos(model, data, s[-1, 1:1 + model.nq], root)
+        if end[2] < st.floor_z - st.extent:  # fell through the floor (no collision geoms)
+            bad += 1
+            continue
+        speeds[r] = float(np.linalg.norm((end - start)[:2])) / span
     best = int(np.argmax(speeds))
     return GaitResult(float(speeds[best]) / st.extent, float(speeds[best]), st.extent,
                       float(freq[best]), amp[best], phase[best], bad, rollouts, steps * dt)
