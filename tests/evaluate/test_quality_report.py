@@ -10,7 +10,12 @@ from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.evaluate.quality.measure import QUALITY_KEYS, measure, measure_many, robot_quality
 from robovae.evaluate.quality.populations import procedural_files, real_robot_files
-from robovae.evaluate.quality.report import format_quality, quality_table, summarize
+from robovae.evaluate.quality.report import (
+    contact_sheets,
+    format_quality,
+    quality_table,
+    summarize,
+)
 
 ZOO = dict(zoo_files()[0])
 
@@ -70,3 +75,13 @@ def test_quality_table_compares_with_the_corpus_and_real_robots(tmp_path, menage
     text = format_quality(pops)
     assert "symmetric (mirrored limb pairs)" in text and "recall vs real robots" in text
     assert real_robot_files(tmp_path / "absent") == []
+
+
+def test_contact_sheets_one_png_per_population(tmp_path) -> None:
+    from PIL import Image
+
+    rows = measure_many([ZOO["gym_ant"], ZOO["gym_hopper"]], jobs=1, progress=False,
+                        describe=False, names=["ant", "hopper"])
+    paths = contact_sheets({"training corpus": rows, "empty": []}, tmp_path, columns=2)
+    assert paths == [tmp_path / "quality_training_corpus.png"]
+    assert Image.open(paths[0]).size == (2 * 240, 180)
