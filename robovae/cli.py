@@ -125,7 +125,9 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     result = analyze(args.ckpt, samples=args.samples, sources=args.source, root=args.root,
                      behaviour=args.behaviour, jobs=args.jobs, permutations=args.permutations,
                      seed=args.seed, max_samples=args.max_samples,
-                     entropy_seconds=args.entropy_seconds)
+                     entropy_seconds=args.entropy_seconds, quality=args.quality,
+                     procedural=args.procedural, real=args.real, locomotion=args.locomotion,
+                     sheets=args.sheets)
     print(format_report(result))
     if args.json:
         print(f"json: {save_json(result, args.json)}")
@@ -220,6 +222,13 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--permutations", type=int, default=200, help="MMD permutation test size")
     a.add_argument("--seed", type=int, default=0)
     a.add_argument("--jobs", type=int, default=0, help="MuJoCo worker processes (0: all cores)")
+    a.add_argument("--quality", type=int, default=200, help="quality measures on at most N "
+                   "robots per population: samples, corpus, procedural, real (0: none)")
+    a.add_argument("--procedural", type=int, default=200, help="procedural robots compared")
+    a.add_argument("--real", help="folder of real robots (default ../shared/menagerie)")
+    a.add_argument("--locomotion", action="store_true",
+                   help="also measure gait speed (64 rollouts of 4 s per robot: slow)")
+    a.add_argument("--sheets", help="write quality contact sheets (PNG) into this folder")
     a.set_defaults(func=cmd_analyze)
     for name in LIGHTNING_COMMANDS:
         sub.add_parser(name, help=f"Lightning CLI: {name} (see robovae {name} --help)",

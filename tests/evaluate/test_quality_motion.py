@@ -10,7 +10,7 @@ import pytest
 from robovae.data.procedural import ProceduralConfig, procedural_spec
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality import gait, gait_speed, stage, standing
-from robovae.evaluate.quality.stage import prepare
+from robovae.evaluate.quality.stage import prepare, rest_pose
 
 FAST = {"rollouts": 8, "seconds": 2.0}
 
@@ -36,11 +36,22 @@ def stick(lean: float = 0.03, actuated: bool = False) -> mujoco.MjSpec:
 def test_a_quadruped_stands_and_a_top_heavy_stick_falls() -> None:
     quad = standing(procedural_spec(2, "quadruped"))
     assert quad.floating and quad.stands and quad.up and quad.upright and not quad.unstable
-    assert quad.fell_at is None and quad.seconds == pytest.approx(3.0, abs=0.01)
+    assert quad.fell_at is None and quad.settled  # at rest after 1 s: stopped early
+    assert quad.seconds == pytest.approx(1.0, abs=0.01)
     assert quad.min_height_ratio >= 0.5 and quad.max_tilt <= 45
     fell = standing(stick())
     assert fell.floating and fell.stands is False and fell.upright is False
     assert 0 < fell.fell_at < 3.0 and fell.max_tilt > 45
+
+
+def test_stopping_early_does_not_change_the_verdict() -> None:
+    """At rest or fallen, the rest of the 3 s cannot change the outcome."""
+    for robot in [procedural_spec(s, k) for s in range(3) for k in ("quadruped", "humanoid")]:
+        early, full = standing(robot), standing(robot, rest=0.0, chunk_seconds=3.0)
+        assert full.seconds == pytest.approx(3.0, abs=0.01) and not full.settled
+        assert early.stands == full.stands and early.fell_at == full.fell_at
+        if early.stands:
+            assert early.height_ratio == pytest.approx(full.height_ratio, abs=0.01)
 
 
 def test_standing_accepts_a_model_with_a_floor_and_leaves_it_unchanged() -> None:
@@ -84,3 +95,18 @@ def test_stage_measures_the_robot_not_the_floor() -> None:
     # box around the stick: 0.2 m wide (ball), from z = 0 (foot) to 1.15 m (ball top)
     assert st.extent == pytest.approx(math.sqrt(0.2 ** 2 + 0.2 ** 2 + 1.15 ** 2), rel=1e-6)
     assert st.free and st.floor_z == pytest.approx(0.0, abs=1e-9)
+
+
+def test_rest_pose_is_the_home_keyframe_within_joint_ranges(menagerie_dir) -> None:
+    go2 = menagerie_dir / "unitree_go2" / "go2.xml"
+    model = stage(go2).model
+    home = model.key_qpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")]
+    assert (rest_pose(model) == home).all()
+    # Go2's qpos0 bends its knees outside their range: held at qpos0 it would fold over
+    assert model.qpos0[9] > model.jnt_range[3, 1]
+    assert standing(go2).stands
+    spec = stick(actuated=True)
+    spec.joints[1].range = [0.5, 1.0]
+    spec.joints[1].limited = mujoco.mjtLimited.mjLIMITED_TRUE
+    m = spec.compile()
+    assert m.qpos0[7] == 0 and rest_pose(m)[7] == m.jnt_range[1, 0] > 0  # clipped into range

@@ -46,6 +46,14 @@ def test_generate_writes_loadable_robots_and_a_report(trained, tmp_path):
     summary = json.loads((out / SUMMARY).read_text())
     assert summary["total"] == 12 and 0 <= summary["metrics"]["validity"] <= 1
     assert "validity" in report.format()
+    # valid robots carry their quality record; the summary counts them
+    valid = [r for r in recs.values() if r["valid"]]
+    assert all({"all_attached", "symmetric", "stands"} <= set(r["quality"]) for r in valid)
+    q = summary["metrics"]["quality"]
+    assert q["robots"] == len(valid)
+    if valid:
+        assert q["all_attached"] == sum(r["quality"]["all_attached"] for r in valid) / len(valid)
+        assert "all bodies attached" in report.format()
 
 
 @pytest.mark.parametrize("fixture", ["trained", "trained_nodes"])

@@ -1,16 +1,28 @@
 """Quality measures of robots: are they in one piece, paired, standing, moving, and how do they
 compare with a training corpus and real robots (docs/generation.md, "Quality").
 
-Every measure takes one robot (a file, a ``mujoco.MjSpec`` or a ``mujoco.MjModel`` with a
-floor) and returns a small dataclass or a number:
+Every per-robot measure takes one robot (a file, a ``mujoco.MjSpec``, or a ``mujoco.MjModel``;
+the physical ones need a model with a floor, files and specs get one) and returns a small
+dataclass or a number; none changes the caller's model:
 
-- :func:`~robovae.evaluate.quality.standing.standing` → ``StandResult``;
-- :func:`~robovae.evaluate.quality.locomotion.gait_speed` → float (and ``gait`` →
-  ``GaitResult``).
+- :func:`~robovae.evaluate.quality.standing.standing` → ``StandResult`` (``.stands``);
+- :func:`~robovae.evaluate.quality.locomotion.gait_speed` → float, extents/s
+  (:func:`~robovae.evaluate.quality.locomotion.gait` → ``GaitResult``);
+- :func:`~robovae.evaluate.quality.attachment.attachment` → ``AttachResult``
+  (``.all_attached``, ``.detached_share``, ``.penetration``);
+- :func:`~robovae.evaluate.quality.symmetry.anatomy` → ``Anatomy`` (``.symmetric``,
+  ``.one_limb``, counts);
+- :func:`~robovae.evaluate.quality.measure.measure` → every measure as one dict.
+
+Population measures: :mod:`~robovae.evaluate.quality.distribution` (1-D Wasserstein,
+split-half reference, k-NN precision/recall) and :mod:`~robovae.evaluate.quality.report`.
 """
 
+from robovae.evaluate.quality.attachment import AttachResult, attachment
 from robovae.evaluate.quality.locomotion import GaitResult, gait, gait_speed
-from robovae.evaluate.quality.stage import Stage, stage
+from robovae.evaluate.quality.stage import Stage, rest_pose, stage
 from robovae.evaluate.quality.standing import StandResult, standing
+from robovae.evaluate.quality.symmetry import Anatomy, anatomy
 
-__all__ = ["GaitResult", "StandResult", "Stage", "gait", "gait_speed", "stage", "standing"]
+__all__ = ["Anatomy", "AttachResult", "GaitResult", "StandResult", "Stage", "anatomy",
+           "attachment", "gait", "gait_speed", "rest_pose", "stage", "standing"]

@@ -9,17 +9,19 @@ actuators with one open-loop gait per rollout,
 when unlimited), amplitude ``A_a ~ U[0, 1]`` and phase ``φ_a ~ U[0, 2π)`` per actuator and one
 frequency ``f ~ U[f_lo, f_hi]`` (0.5–3 Hz) per rollout. A fixed budget of ``rollouts`` (64)
 random gaits of ``seconds`` (4 s) each, drawn from ``numpy.random.default_rng(seed)``, runs in
-one ``mujoco.rollout`` call from ``qpos0`` (random search).
+one ``mujoco.rollout`` call from the robot's rest pose
+(:func:`~robovae.evaluate.quality.stage.rest_pose`) at rest (random search).
 
 The **speed** of a gait is the horizontal distance (m) the root body covers between
 ``settle · seconds`` (a quarter of the rollout: falling over or dropping onto the floor at the
 start is not locomotion) and the end, divided by the time in between and by the robot's extent
 ``L`` (the diagonal of its bounding box at ``qpos0``): extents per second; any direction counts
 as forward (a generated robot has no designated front). Rollouts that go unstable (non-finite
-state, or MuJoCo resetting it) score 0. :func:`gait_speed` is the best speed over the budget. A
-robot without actuators scores 0. It is a random search: the number is a lower bound on what
-the body can do with such gaits, comparable between robots measured with the same budget and
-seed.
+state, or MuJoCo resetting it) or fall through the floor (root ending more than ``L`` below
+it: a robot without collision geoms) score 0 and count in ``GaitResult.unstable``.
+:func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0. It
+is a random search: the number is a lower bound on what the body can do with such gaits,
+comparable between robots measured with the same budget and seed.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import numpy as np
 from mujoco import rollout
 
 from robovae.data.loading import capture_mujoco_warnings
-from robovae.evaluate.quality.stage import Robot, stage
+from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
 __all__ = ["GaitResult", "gait", "gait_speed", "sinusoid_controls"]
 
@@ -65,11 +67,11 @@ def sinusoid_controls(model: mujoco.MjModel, amplitude: np.ndarray, phase: np.nd
     return mid + amplitude[:, None, :] * half * np.sin(arg)
 
 
-def _root_xy(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root: int
-             ) -> np.ndarray:
+def _root_pos(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root: int
+              ) -> np.ndarray:
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
-    return data.xpos[root, :2].copy()
+    return data.xpos[root].copy()
 
 
 def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
@@ -97,6 +99,7 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     freq = rng.uniform(frequency[0], frequency[1], rollouts)
     ctrl = sinusoid_controls(model, amp, phase, freq, steps)
     data = mujoco.MjData(model)
+    data.qpos[:] = rest_pose(model)
     mujoco.mj_forward(model, data)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
@@ -112,9 +115,12 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
         if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
             bad += 1
             continue
-        start = _root_xy(model, data, s[first, 1:1 + model.nq], root)
-        end = _root_xy(model, data, s[-1, 1:1 + model.nq], root)
-        speeds[r] = float(np.linalg.norm(end - start)) / span
+        start = _root_pos(model, data, s[first, 1:1 + model.nq], root)
+        end = _root_pos(model, data, s[-1, 1:1 + model.nq], root)
+        if end[2] < st.floor_z - st.extent:  # fell through the floor (no collision geoms)
+            bad += 1
+            continue
+        speeds[r] = float(np.linalg.norm((end - start)[:2])) / span
     best = int(np.argmax(speeds))
     return GaitResult(float(speeds[best]) / st.extent, float(speeds[best]), st.extent,
                       float(freq[best]), amp[best], phase[best], bad, rollouts, steps * dt)

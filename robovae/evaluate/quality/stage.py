@@ -38,8 +38,11 @@ BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQP
 
 Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel
 
-__all__ = ["Robot", "Stage", "compiled", "extent", "prepare", "robot_points", "stage",
-           "unstable"]
+__all__ = ["REST_KEYFRAMES", "Robot", "Stage", "compiled", "extent", "prepare", "rest_pose",
+           "robot_points", "stage", "unstable"]
+
+#: Keyframe names taken as a robot's rest pose (Menagerie's robots define ``home``).
+REST_KEYFRAMES = ("home", "stand", "standing")
 
 
 @dataclass
@@ -127,9 +130,13 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
     Raises:
         RobotFileError: the file does not load (one line).
     """
-    spec = robot.copy() if isinstance(robot, mujoco.MjSpec) else load_robot(robot).spec
-    with capture_mujoco_warnings():
-        model = spec.compile()
+    if isinstance(robot, mujoco.MjSpec):
+        spec = robot.copy()
+        with capture_mujoco_warnings():
+            model = spec.compile()
+    else:
+        loaded = load_robot(robot)
+        spec, model = loaded.spec, loaded.model
     if not _has_floor(model):
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
@@ -160,6 +167,23 @@ def stage(robot: Robot, integrator: int | None = None) -> Stage:
             model.opt.integrator = integrator
         return _stage_of(model)
     return prepare(robot, integrator)[1]
+
+
+def rest_pose(model: mujoco.MjModel) -> np.ndarray:
+    """The robot's rest ``qpos``: its keyframe named in :data:`REST_KEYFRAMES` when it has one
+    (real robots' ``qpos0`` is often outside their joint ranges: Go2's knees), else
+    ``qpos0``; hinge and slide positions clipped into their joint ranges."""
+    q = model.qpos0.copy()
+    for name in REST_KEYFRAMES:
+        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name)
+        if k >= 0:
+            q = model.key_qpos[k].copy()
+            break
+    for j in range(model.njnt):
+        if model.jnt_type[j] in MOVING and model.jnt_limited[j]:
+            a = model.jnt_qposadr[j]
+            q[a] = np.clip(q[a], *model.jnt_range[j])
+    return q
 
 
 def unstable(data: mujoco.MjData) -> bool:

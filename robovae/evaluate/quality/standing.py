@@ -2,28 +2,36 @@
 
 The robot (:func:`~robovae.evaluate.quality.stage.stage`: a floor is added to a file or spec
 without one) is simulated for ``seconds`` (3 s) with every hinge and slide joint PD-held at its
-``qpos0`` value, from ``qpos0`` and zero velocity, in one ``mujoco.rollout`` call (the hold is
+rest pose (:func:`~robovae.evaluate.quality.stage.rest_pose`: a ``home`` keyframe, else
+``qpos0``, clipped into the joint ranges), from that pose and zero velocity, with
+``mujoco.rollout`` (the hold is
 part of the model, so no Python runs per step). A copy of the model is changed, never the
 caller's:
 
 - **hold**: stiffness ``kp = stiffness · m g L`` (total mass ``m``, extent ``L``: the base
   sags about ``1/stiffness`` rad under its full weight on a lever of its own size), capped at
-  ``0.1 I / dt²`` (``I`` the joint's inertia ``dof_M0`` at ``qpos0``, ``dt`` the time step, so
+  ``0.1 I / dt²`` (``I`` the joint's inertia ``dof_M0``, ``dt`` the time step, so
   that the explicit spring stays stable), critical damping ``kv = 2 sqrt(kp I)``, integrator
   ``implicitfast`` (damping implicit);
 - a joint driven by a stateless actuator of the robot (joint transmission, no activation) is
   held by that actuator turned into a position servo (gain ``kp``, bias ``-kp q - kv q̇``,
   gear 1) whose force is limited, with ``torque_limits``, by what the robot's own actuators
   can give on that joint (:func:`torque_limits`); other joints are held by a passive spring
-  and damper (``jnt_stiffness``, ``qpos_spring = qpos0``, ``dof_damping``), unlimited; the
+  and damper (``jnt_stiffness``, ``qpos_spring`` the rest pose, ``dof_damping``), unlimited; the
   robot's other actuators are switched off (zero gain and bias).
 
 Only floating-base robots (root body with a free joint) are tested. The robot **stands** when
 at every sample (every ``sample_dt``) its root stayed **up** — root height above the floor at
-least ``min_height`` (0.5) of its height above its own lowest point at ``qpos0`` — and
-**upright** — the root's up axis (the local direction that points up at ``qpos0``) within
+least ``min_height`` (0.5) of its height above its own lowest point at rest — and
+**upright** — the root's up axis (the local direction that points up at rest) within
 ``max_tilt`` (45°) of vertical — and the simulation stayed stable (finite, no MuJoCo
-instability warning: MuJoCo would silently reset the state).
+instability warning: MuJoCo would silently reset the state). The root pose is read from the
+free joint's ``qpos`` (position and quaternion) at every sample.
+
+The simulation stops early, without changing the verdict, at the first failing sample (the
+robot fell: ``height_ratio`` and ``max_tilt`` then describe the moment it failed) or once the
+robot is at rest after at least 1 s (held joints, every velocity below ``rest``: a robot at
+rest under a PD hold stays at rest; ``settled``).
 """
 
 from __future__ import annotations
@@ -36,7 +44,14 @@ import numpy as np
 from mujoco import rollout
 
 from robovae.data.loading import capture_mujoco_warnings
-from robovae.evaluate.quality.stage import MOVING, Robot, robot_points, stage, unstable
+from robovae.evaluate.quality.stage import (
+    MOVING,
+    Robot,
+    rest_pose,
+    robot_points,
+    stage,
+    unstable,
+)
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
 _GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
@@ -63,6 +78,7 @@ class StandResult:
     unstable: bool | None = None
     limited_joints: int | None = None  # joints held with a torque limit
     seconds: float | None = None  # simulated
+    settled: bool | None = None  # stopped early: at rest (module docstring)
 
 
 def torque_limits(model: mujoco.MjModel) -> dict[int, float]:
@@ -92,10 +108,13 @@ def torque_limits(model: mujoco.MjModel) -> dict[int, float]:
 
 
 def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
-                 limit_torques: bool = True) -> tuple[np.ndarray, int]:
-    """Change ``model`` in place so that every hinge/slide joint is PD-held at ``qpos0``
-    (module docstring). Returns the constant control vector that holds the robot (servo
-    targets ``qpos0``, zero elsewhere) and the number of torque-limited joints."""
+                 limit_torques: bool = True, pose: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, int]:
+    """Change ``model`` in place so that every hinge/slide joint is PD-held at ``pose``
+    (default ``qpos0``; module docstring). Returns the constant control vector that holds the
+    robot (servo targets from ``pose``, zero elsewhere) and the number of torque-limited
+    joints."""
+    pose = model.qpos0 if pose is None else pose
     limits = torque_limits(model) if limit_torques else {}
     mass = float(model.body_subtreemass[0])
     g = float(np.linalg.norm(model.opt.gravity)) or 9.81
@@ -122,7 +141,7 @@ def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
         a = servo.get(j)
         if a is None:
             model.jnt_stiffness[j] = kp
-            model.qpos_spring[qadr] = model.qpos0[qadr]
+            model.qpos_spring[qadr] = pose[qadr]
             model.dof_damping[dof] += kv
             continue
         model.actuator_biastype[a] = _BIAS_AFFINE
@@ -135,17 +154,20 @@ def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
         if model.actuator_forcelimited[a]:
             model.actuator_forcerange[a] = (-lim, lim)
             limited += 1
-        ctrl[a] = model.qpos0[qadr]
+        ctrl[a] = pose[qadr]
     return ctrl, limited
 
 
 def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
              limit_torques: bool = True, min_height: float = 0.5, max_tilt: float = 45.0,
-             sample_dt: float = 0.02, max_steps: int = 10_000) -> StandResult:
+             sample_dt: float = 0.02, max_steps: int = 10_000, chunk_seconds: float = 0.5,
+             rest: float = 1e-3) -> StandResult:
     """The standing test of a robot file, spec or model with a floor (module docstring).
 
     ``max_steps`` caps the physics steps: a robot with a tiny time step is tested for less than
-    ``seconds`` (``StandResult.seconds`` says how long).
+    ``seconds`` (``StandResult.seconds`` says how long). The simulation runs in rollouts of
+    ``chunk_seconds`` and stops early at the first failing sample or when the robot is at rest
+    (after at least 1 s, every ``|qvel|`` below ``rest``, m/s or rad/s).
 
     Raises:
         RobovaeError: a model without a floor; RobotFileError: a file that does not load.
@@ -154,43 +176,61 @@ def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
     if not st.free:
         return StandResult(floating=False)
     model, root = st.model, st.root
-    ctrl, limited = hold_at_rest(model, st.extent, stiffness, limit_torques)
+    pose = rest_pose(model)
+    ctrl, limited = hold_at_rest(model, st.extent, stiffness, limit_torques, pose)
     data = mujoco.MjData(model)
+    data.qpos[:] = pose
     mujoco.mj_forward(model, data)
     h0 = float(data.xpos[root, 2] - robot_points(model, data, root)[:, 2].min())
     up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
     dt = model.opt.timestep
     steps = min(max(1, round(seconds / dt)), max_steps)
     every = max(1, round(sample_dt / dt))
+    chunk = max(every, round(chunk_seconds / dt) // every * every)
+    qadr = model.jnt_qposadr[model.body_jntadr[root]]
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    state0 = np.empty(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, data, state0, spec)
-    with capture_mujoco_warnings():
-        states, _ = rollout.rollout(model, data, state0[None], ctrl[None, None],
-                                    nstep=steps)
-    bad = unstable(data) or not np.isfinite(states).all()
-    times = states[0, :, 0]
-    bad = bad or bool(np.any(np.diff(times) <= 0))  # MuJoCo resets the state on bad qacc
-    picks = list(range(every - 1, steps, every))
-    if not picks or picks[-1] != steps - 1:
-        picks.append(steps - 1)
-    qpos = states[0, picks, 1:1 + model.nq]
+    state = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
     fell_at, min_ratio, worst, ratio, tilt = None, math.inf, 0.0, math.nan, 0.0
-    for t, q in zip(picks, qpos):
-        if not np.isfinite(q).all():
-            fell_at = fell_at if fell_at is not None else (t + 1) * dt
-            break
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        ratio = float(data.xpos[root, 2] - st.floor_z) / max(h0, 1e-9)
-        up = data.xmat[root].reshape(3, 3) @ up_local
-        tilt = math.degrees(math.acos(float(np.clip(up[2], -1.0, 1.0))))
-        min_ratio, worst = min(min_ratio, ratio), max(worst, tilt)
-        if fell_at is None and (ratio < min_height or tilt > max_tilt):
-            fell_at = (t + 1) * dt
+    bad, settled, done = False, False, 0
+    with capture_mujoco_warnings():
+        while done < steps and fell_at is None and not bad and not settled:
+            n = min(chunk, steps - done)
+            states, _ = rollout.rollout(model, data, state[None], ctrl[None, None], nstep=n)
+            s = states[0]
+            # MuJoCo resets the state (time jumps back) on a bad acceleration
+            bad = (unstable(data) or not np.isfinite(s).all()
+                   or bool(np.any(np.diff(s[:, 0]) <= 0)) or s[0, 0] <= state[0])
+            picks = np.arange(every - 1, n, every)
+            if not len(picks) or picks[-1] != n - 1:
+                picks = np.append(picks, n - 1)
+            q = s[picks, 1 + qadr:1 + qadr + 7]  # the free joint: position, quaternion
+            z = q[:, 2]
+            w, x, y, qz = q[:, 3], q[:, 4], q[:, 5], q[:, 6]
+            norm = np.maximum(w * w + x * x + y * y + qz * qz, 1e-12)
+            row = np.stack([2 * (x * qz - w * y), 2 * (y * qz + w * x),
+                            w * w - x * x - y * y + qz * qz], axis=1) / norm[:, None]
+            up_z = np.clip(row @ up_local, -1.0, 1.0)  # world z of the local up axis
+            ratios = (z - st.floor_z) / max(h0, 1e-9)
+            tilts = np.degrees(np.arccos(up_z))
+            ok = np.isfinite(ratios) & np.isfinite(tilts)
+            if ok.any():
+                ratio, tilt = float(ratios[ok][-1]), float(tilts[ok][-1])
+                min_ratio = min(min_ratio, float(ratios[ok].min()))
+                worst = max(worst, float(tilts[ok].max()))
+            failed = np.flatnonzero(~ok | (ratios < min_height) | (tilts > max_tilt))
+            if failed.size:
+                fell_at = (done + picks[failed[0]] + 1) * dt
+            state = s[-1].copy()
+            done += n
+            qvel = state[1 + model.nq:1 + model.nq + model.nv]
+            settled = done * dt >= 1.0 and bool(np.abs(qvel).max(initial=0.0) < rest)
+    if bad and fell_at is None:
+        fell_at = done * dt
     return StandResult(
         floating=True, stands=fell_at is None and not bad,
         up=bool(ratio >= min_height) and not bad, upright=bool(tilt <= max_tilt) and not bad,
         fell_at=fell_at, height_ratio=ratio,
         min_height_ratio=min_ratio if math.isfinite(min_ratio) else math.nan,
-        max_tilt=worst, unstable=bool(bad), limited_joints=limited, seconds=steps * dt)
+        max_tilt=worst, unstable=bool(bad), limited_joints=limited, seconds=done * dt,
+        settled=settled)

@@ -1,0 +1,133 @@
+"""Every quality measure of one robot as one flat record, and of many robots in worker
+processes with a progress bar.
+
+:func:`measure` loads and compiles the robot once (a floor is added when it has none,
+:func:`~robovae.evaluate.quality.stage.prepare`) and runs on that model:
+
+- ``bodies``, ``dof``, ``mass``, ``limbs``: counts
+  (:func:`~robovae.evaluate.quality.symmetry.anatomy`); ``pairs``, ``symmetric``,
+  ``one_limb``: mirrored limb pairs;
+- ``judged``, ``detached``, ``all_attached``, ``detached_share``: bodies judged / detached
+  (:mod:`~robovae.evaluate.quality.attachment`); ``penetration``: deepest self-penetration at
+  rest over the extent; ``self_penetrating``: a contact deeper than 1 % of the extent;
+- ``floating``, ``stands``, ``fell_at``, ``stand_tilt``: the standing test
+  (:mod:`~robovae.evaluate.quality.standing`; ``stands`` None when not floating);
+- ``gait_speed`` (extents/s), ``gait_speed_m_s``: with ``locomotion``, the best gait
+  (:mod:`~robovae.evaluate.quality.locomotion`);
+- ``d_<descriptor>``: graph descriptors (``VECTOR_DESCRIPTORS`` of
+  :mod:`robovae.evaluate.descriptors`, ``paper34`` graph of the model);
+- ``t_<measure>``: seconds each measure took.
+
+A robot that cannot be loaded or measured gets ``error`` (one line) instead: a bad robot never
+stops a population.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import mujoco
+
+from robovae.data.mjcf import model_to_graph
+from robovae.evaluate.descriptors import VECTOR_DESCRIPTORS, descriptors
+from robovae.evaluate.quality.attachment import attachment
+from robovae.evaluate.quality.locomotion import gait
+from robovae.evaluate.quality.stage import prepare
+from robovae.evaluate.quality.standing import standing
+from robovae.evaluate.quality.symmetry import anatomy
+
+__all__ = ["QUALITY_KEYS", "measure", "measure_many", "robot_quality"]
+
+#: The fields of :func:`robot_quality` (generation's manifest and summary).
+QUALITY_KEYS = ("all_attached", "detached_share", "self_penetrating", "symmetric", "one_limb",
+                "floating", "stands", "limbs", "bodies", "dof", "mass")
+
+
+def _timed(out: dict, key: str, fn, *args, **kwargs):
+    t = time.perf_counter()
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        out[f"t_{key}"] = time.perf_counter() - t
+
+
+def measure(robot: str | os.PathLike | mujoco.MjSpec, locomotion: bool = False,
+            describe: bool = True, gait_kw: dict | None = None,
+            stand_kw: dict | None = None, name: str | None = None) -> dict:
+    """The quality record of one robot file or spec (module docstring). ``gait_kw`` and
+    ``stand_kw`` are passed to :func:`~robovae.evaluate.quality.locomotion.gait` and
+    :func:`~robovae.evaluate.quality.standing.standing`; ``name`` defaults to the spec's
+    model name or the file stem (the folder for ``robot_<i>/robot.xml``)."""
+    if name is None:
+        name = robot.modelname if isinstance(robot, mujoco.MjSpec) else Path(robot).stem
+        if name == "robot":  # robovae generate's robot_<i>/robot.xml
+            name = Path(robot).parent.name
+    out: dict = {"name": name, "path": None if isinstance(robot, mujoco.MjSpec) else str(robot)}
+    try:
+        _, st = _timed(out, "load", prepare, robot)
+        model = st.model
+        a = _timed(out, "anatomy", anatomy, model)
+        out.update(bodies=a.bodies, dof=a.dof, mass=a.mass, limbs=a.limbs, pairs=a.pairs,
+                   symmetric=a.symmetric, one_limb=a.one_limb, extent=st.extent)
+        at = _timed(out, "attachment", attachment, model)
+        out.update(judged=at.bodies, detached=at.detached, all_attached=at.all_attached,
+                   detached_share=at.detached_share, penetration=at.penetration / at.extent,
+                   self_penetrating=at.penetrating_pairs > 0)
+        s = _timed(out, "standing", standing, model, **(stand_kw or {}))
+        out.update(floating=s.floating, stands=s.stands, fell_at=s.fell_at,
+                   stand_tilt=s.max_tilt)
+        if describe:
+            d = _timed(out, "descriptors", lambda: descriptors(model_to_graph(model)))
+            out.update({f"d_{k}": d[k] for k in VECTOR_DESCRIPTORS})
+        if locomotion:
+            g = _timed(out, "gait", gait, model, **(gait_kw or {}))
+            out.update(gait_speed=g.speed, gait_speed_m_s=g.speed_m_s)
+    except Exception as e:  # noqa: BLE001 - one bad robot must not stop a population
+        out["error"] = " ".join(f"{type(e).__name__}: {e}".split())
+    return out
+
+
+def robot_quality(robot: str | os.PathLike | mujoco.MjSpec) -> dict:
+    """The compact quality record of one robot (:data:`QUALITY_KEYS` of :func:`measure`
+    without descriptors or locomotion; ``error`` when it could not be measured)."""
+    rec = measure(robot, describe=False)
+    return {k: rec[k] for k in (*QUALITY_KEYS, "error") if k in rec}
+
+
+def _measure_item(item: tuple) -> dict:
+    robot, name, kw = item
+    return measure(robot, name=name, **kw)
+
+
+def measure_many(robots: Sequence[str | os.PathLike | mujoco.MjSpec], jobs: int = 2,
+                 progress: bool = True, desc: str = "quality",
+                 names: Sequence[str] | None = None, **kw) -> list[dict]:
+    """:func:`measure` (keyword arguments ``kw``) of many robots, in order, in ``jobs`` worker
+    processes (``spawn``; ``0``: all cores, ``1``: in this process), with a tqdm progress bar
+    labelled ``desc``; robot ``k`` is called ``names[k]`` when given."""
+    from tqdm.auto import tqdm
+
+    items = [(r, names[k] if names is not None else None, kw) for k, r in enumerate(robots)]
+    jobs = jobs or (os.cpu_count() or 1)
+    bar = tqdm(total=len(items), desc=desc, unit="robot", disable=not progress)
+    out: list[dict] = []
+    try:
+        if jobs <= 1 or len(items) < 2:
+            for it in items:
+                out.append(_measure_item(it))
+                bar.update()
+            return out
+        ctx = multiprocessing.get_context("spawn")
+        chunk = max(1, min(16, len(items) // (4 * jobs)))
+        with ProcessPoolExecutor(min(jobs, len(items)), mp_context=ctx) as pool:
+            for rec in pool.map(_measure_item, items, chunksize=chunk):
+                out.append(rec)
+                bar.update()
+        return out
+    finally:
+        bar.close()

@@ -1,0 +1,87 @@
+"""Quality records of many robots and the side-by-side table (robovae.evaluate.quality)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from robovae.data.procedural import procedural_spec
+from robovae.data.zoo import zoo_files
+from robovae.evaluate.quality.measure import QUALITY_KEYS, measure, measure_many, robot_quality
+from robovae.evaluate.quality.populations import procedural_files, real_robot_files
+from robovae.evaluate.quality.report import (
+    contact_sheets,
+    format_quality,
+    quality_table,
+    summarize,
+)
+
+ZOO = dict(zoo_files()[0])
+
+
+def test_measure_records_every_measure_and_errors_in_one_line(tmp_path) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><worldbody><body></mujoco>")
+    rows = measure_many([ZOO["gym_ant"], bad, procedural_spec(0, "hexapod")], jobs=1,
+                        progress=False, names=["ant", "bad", "hexapod"],
+                        gait_kw={"rollouts": 2, "seconds": 0.5}, locomotion=True)
+    ant, broken, hexapod = rows
+    assert [r["name"] for r in rows] == ["ant", "bad", "hexapod"]
+    assert "error" in broken and "\n" not in broken["error"]
+    assert ant["all_attached"] and ant["symmetric"] and ant["stands"]
+    assert (ant["limbs"], ant["bodies"], ant["dof"]) == (4, 13, 14)
+    assert ant["d_limbs"] == 4 and ant["gait_speed"] > 0
+    assert hexapod["limbs"] == 6 and hexapod["pairs"] == 3
+    assert all(ant[f"t_{k}"] >= 0 for k in ("load", "anatomy", "attachment", "standing"))
+    compact = robot_quality(procedural_spec(0, "hexapod"))
+    assert set(compact) == set(QUALITY_KEYS)
+    assert measure(ZOO["gym_half_cheetah"], describe=False)["stands"] is None  # not floating
+
+
+def test_summary_shares_leave_errors_out() -> None:
+    rows = [{"all_attached": True, "symmetric": True, "one_limb": False, "floating": True,
+             "stands": True, "detached_share": 0.0, "self_penetrating": False, "limbs": 4},
+            {"all_attached": False, "symmetric": False, "one_limb": True, "floating": False,
+             "stands": None, "detached_share": 0.5, "self_penetrating": True, "limbs": 1},
+            {"error": "RobotFileError: x"}]
+    s = summarize(rows)
+    assert s["robots"] == 3 and s["errors"] == 1
+    assert s["all_attached"] == 0.5 and s["symmetric"] == 0.5 and s["one_limb"] == 0.5
+    assert s["detached_share"] == 0.25 and s["self_penetrating"] == 0.5
+    assert s["floating"] == 1 and s["standing"] == 1.0 and s["mean_limbs"] == 2.5
+    assert math.isnan(s["gait_speed"]) and math.isnan(summarize([])["standing"])
+
+
+def test_quality_table_compares_with_the_corpus_and_real_robots(tmp_path, menagerie_dir
+                                                                ) -> None:
+    kw = {"jobs": 1, "progress": False}
+    corpus = measure_many([ZOO[n] for n in ("gym_ant", "dmc_quadruped", "gym_walker2d",
+                                             "gym_humanoid")], **kw)
+    proc = measure_many(procedural_files(4, tmp_path, seed=3), **kw)
+    real = measure_many(real_robot_files(menagerie_dir)[:3], **kw)
+    pops = {"samples": corpus[:2], "training corpus": corpus, "procedural": proc,
+            "real robots": real}
+    rows, cols, numbers = quality_table(pops)
+    assert cols == ["measure", "samples", "training corpus", "procedural", "real robots"]
+    assert numbers["training corpus"]["precision_corpus"] != numbers["training corpus"][
+        "precision_corpus"]  # NaN: no precision of the corpus against itself
+    # samples drawn from the corpus lie on its manifold
+    assert numbers["samples"]["precision_corpus"] == 1.0
+    assert numbers["samples"]["w1_limbs"] == pytest.approx(0.75)  # {4, 4} vs {4, 4, 2, 3}
+    assert numbers["training corpus"]["w1_limbs"] > 0  # split-half reference
+    assert numbers["procedural"]["all_attached"] == 1.0
+    assert len(real_robot_files(menagerie_dir)) == 17
+    text = format_quality(pops)
+    assert "symmetric (mirrored limb pairs)" in text and "recall vs real robots" in text
+    assert real_robot_files(tmp_path / "absent") == []
+
+
+def test_contact_sheets_one_png_per_population(tmp_path) -> None:
+    from PIL import Image
+
+    rows = measure_many([ZOO["gym_ant"], ZOO["gym_hopper"]], jobs=1, progress=False,
+                        describe=False, names=["ant", "hopper"])
+    paths = contact_sheets({"training corpus": rows, "empty": []}, tmp_path, columns=2)
+    assert paths == [tmp_path / "quality_training_corpus.png"]
+    assert Image.open(paths[0]).size == (2 * 240, 180)
