@@ -14,11 +14,12 @@ measures being written in :mod:`robovae.evaluate` can replace these behind the s
   It runs ``seconds`` (3 s); its speed is the root's horizontal displacement between
   ``settle`` (1 s) and the end, divided by that time and by the robot's **extent** ``L`` (the
   diagonal of its bounding box at ``qpos0``, m): body lengths per second, so that size alone
-  does not win. A rollout scores 0 when it diverges (non-finite state or a MuJoCo
-  instability warning) or the robot **falls**: its root's up axis (the local direction that
-  points up at ``qpos0``) tilts more than ``max_tilt`` (60°) from vertical at any 10 ms sample
-  (tumbling is not walking; the same bound as ``robovae/Walk-v0``'s health). ``score`` is
-  the best gait's speed; ``speed`` is the same in m/s.
+  does not win. When the robot **falls** — its root's up axis (the local direction that points
+  up at ``qpos0``) tilts more than ``max_tilt`` (60°) from vertical at a 10 ms sample, the
+  bound of ``robovae/Walk-v0``'s health — the displacement stops counting there (tumbling is
+  not walking) but the time still runs to the end: falling early costs. A rollout that
+  diverges (non-finite state or a MuJoCo instability warning) scores 0. ``score`` is the best
+  gait's speed; ``speed`` is the same in m/s.
 - **stand** (:func:`stand_score`): :func:`robovae.evaluate.behaviour.standing_test` for 3 s
   (joints PD-held at ``qpos0`` with the robot's own torque limits); ``score`` is the lowest
   root height over the test as a fraction of its height at ``qpos0`` (``min_height_ratio``),
@@ -43,7 +44,10 @@ import numpy as np
 
 from robovae.data.mjcf import capture_mujoco_warnings
 
-__all__ = ["TASKS", "reach_score", "score_robot", "stand_score", "walk_score"]
+__all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_score"]
+
+#: Changes whenever a measure changes: an optimisation log of another version is not continued.
+SCORE_VERSION = 2
 
 _BAD = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
         mujoco.mjtWarning.mjWARN_BADQVEL)
@@ -54,9 +58,9 @@ _BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 def _rollout(model: mujoco.MjModel, lo: np.ndarray, hi: np.ndarray, root: int, freq: float,
              amp: np.ndarray, phase: np.ndarray, seconds: float, settle: float,
              cos_tilt: float) -> float:
-    """Horizontal root displacement (m) between ``settle`` and ``seconds`` of one gait; NaN
-    when the simulation diverges or the root tilts more than ``acos(cos_tilt)`` from its
-    initial up axis (checked every 10 ms)."""
+    """Horizontal root displacement (m) between ``settle`` and ``seconds`` of one gait, or
+    until the root tilts more than ``acos(cos_tilt)`` from its initial up axis (checked every
+    10 ms; 0 when that happens before ``settle``); NaN when the simulation diverges."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
@@ -71,7 +75,9 @@ def _rollout(model: mujoco.MjModel, lo: np.ndarray, hi: np.ndarray, root: int, f
         if t + 1 == start:
             p0 = data.xpos[root, :2].copy()
         if (t + 1) % every == 0 and (data.xmat[root].reshape(3, 3) @ up_local)[2] < cos_tilt:
-            return math.nan
+            break  # fallen: what it walked before counts, the tumbling after does not
+    if t + 1 <= start:
+        p0 = data.xpos[root, :2].copy()
     if any(data.warning[w].number for w in _BAD) or not np.isfinite(data.qpos).all():
         return math.nan
     return float(np.linalg.norm(data.xpos[root, :2] - p0))
