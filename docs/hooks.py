@@ -37,7 +37,7 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     if MARKER not in markdown:
         return markdown
     parts = ["## robovae", "", "```text", _help([]), "```", ""]
-    for cmd in ("data", "generate", "render", "analyze"):
+    for cmd in ("data", "generate", "interpolate", "optimize", "render", "analyze"):
         parts += [f"## robovae {cmd}", "", "```text", _help([cmd]), "```", ""]
     parts += ["## robovae fit | validate | test | predict", "",
               "The resolved configuration of `configs/tiny.yaml` "

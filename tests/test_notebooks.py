@@ -1,7 +1,8 @@
 """The notebooks run top to bottom with small settings (``ROBOVAE_FAST=1``).
 
 ``quickstart.ipynb`` gets no checkpoint, so it trains its own tiny model (the "no checkpoint"
-path); ``latent_space.ipynb`` uses the session's small zoo model (the ``trained`` fixture).
+path); ``latent_space.ipynb`` uses the session's small zoo model (the ``trained`` fixture),
+``design.ipynb`` the one with node latents (``trained_nodes``).
 Pictures and robots go to a temporary folder, never into the repository.
 """
 
@@ -43,7 +44,7 @@ def notebook_env(monkeypatch, tmp_path, cache_root):
     return tmp_path
 
 
-@pytest.mark.parametrize("name", ["quickstart.ipynb", "latent_space.ipynb"])
+@pytest.mark.parametrize("name", ["quickstart.ipynb", "latent_space.ipynb", "design.ipynb"])
 def test_notebook_is_committed_without_outputs(name):
     nb = nbformat.read(NOTEBOOKS / name, as_version=4)
     nbformat.validate(nb)
@@ -71,3 +72,17 @@ def test_latent_space_runs(notebook_env, monkeypatch, trained):
     assert (notebook_env / "out" / "neighbours_of_gym_ant.png").is_file()
     assert (notebook_env / "out" / "nearest.png").is_file()
     assert seconds < 150, f"latent_space took {seconds:.0f} s"
+
+
+def test_design_runs(notebook_env, monkeypatch, trained_nodes):
+    _, _, ckpt = trained_nodes
+    monkeypatch.setenv("ROBOVAE_CKPT", str(ckpt))
+    nb, seconds = execute("design.ipynb")
+    text = outputs(nb)
+    assert "best walk score" in text and "after 3 evaluations" in text
+    assert "could not walk" in text
+    assert "Walk-v0 with the best" in text or "no actuators" in text
+    out = notebook_env / "out"
+    assert (out / "design_convergence.png").is_file() and (out / "design_best.png").is_file()
+    assert (out / "design_walk" / "log.json").is_file()
+    assert seconds < 150, f"design took {seconds:.0f} s"

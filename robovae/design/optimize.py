@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from robovae.design.score import TASKS, score_robot
+from robovae.design.score import SCORE_VERSION, TASKS, score_robot
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import latent, model_fingerprint, worker_pool
 from robovae.model.checkpoint import load_model
@@ -115,7 +115,8 @@ class _Run:
         self.dim = int(model.hparams.latent_dim)
         self.floating = task != "reach"
         self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
-                         "latent_dim": self.dim, "score_seed": 0}
+                         "latent_dim": self.dim, "score_seed": 0,
+                         "score_version": SCORE_VERSION}
         self.log = {"settings": self.settings, "budget": budget,
                     "evaluations": {m: [] for m in METHODS}}
         self.cma = CMA(mean=np.zeros(self.dim), sigma=1.0, seed=seed)

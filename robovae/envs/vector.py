@@ -102,10 +102,12 @@ class PadObsAction(gymnasium.Wrapper):
         self.action_space = spaces.Box(-1.0, 1.0, (layout.action,), np.float32)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Reset the robot's environment; the observation padded."""
         obs, info = self.env.reset(seed=seed, options=options)
         return pad_obs(obs, self.own, self.padded), info
 
     def step(self, action):
+        """Step with the first ``nu`` entries of ``action``; the observation padded."""
         obs, reward, terminated, truncated, info = self.env.step(
             np.asarray(action)[:self.own.action])
         return pad_obs(obs, self.own, self.padded), reward, terminated, truncated, info
@@ -120,7 +122,7 @@ def _make(robot: str, layout: Layout, kwargs: dict) -> gymnasium.Env:
 
 def make_vector_env(robots: str | os.PathLike | Sequence[str | os.PathLike],
                     asynchronous: bool = True, context: str | None = "spawn",
-                    **env_kwargs) -> gymnasium.vector.VectorEnv:
+                    **env_kwargs: object) -> gymnasium.vector.VectorEnv:
     """A vector environment with one ``robovae/Walk-v0`` per robot (module docstring).
 
     Args:
@@ -128,14 +130,15 @@ def make_vector_env(robots: str | os.PathLike | Sequence[str | os.PathLike],
         asynchronous: ``AsyncVectorEnv`` (one worker process per robot) or ``SyncVectorEnv``.
         context: multiprocessing start method of the workers (``spawn``: safe when the parent
             process runs torch threads).
-        env_kwargs: passed to every :class:`~robovae.envs.walk.WalkEnv`.
+        **env_kwargs: passed to every :class:`~robovae.envs.walk.WalkEnv`.
 
     Returns:
         the vector environment, with ``robots``, ``layouts``, ``obs_mask`` and ``action_mask``.
 
     Raises:
-        RobovaeError / RobotFileError: as :func:`robot_files` and :class:`WalkEnv`, naming the
-        first robot that cannot be an environment (checked here, before any worker starts).
+        RobovaeError: as :func:`robot_files` and :class:`~robovae.envs.walk.WalkEnv` (a
+            ``RobotFileError`` for a file that is not a robot), naming the first robot that
+            cannot be an environment (checked here, before any worker starts).
     """
     files = robot_files(robots)
     layouts = []

@@ -142,7 +142,8 @@ def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco
     (module docstring), and facts about it.
 
     Raises:
-        RobotFileError: the file cannot be loaded. RobovaeError: no actuators.
+        RobotFileError: the file cannot be loaded.
+        RobovaeError: the robot has no actuators.
     """
     path = Path(robot)
     loaded = load_robot(path)
@@ -198,10 +199,12 @@ class WalkEnv(MujocoEnv):
         reset_noise_scale: half-width of the uniform noise added to joint positions, and std of
             the normal noise of velocities, at reset (free-joint orientation left exact).
         free_base: give a jointless root a free joint (module docstring).
-        render_mode, width, height: as :class:`~gymnasium.envs.mujoco.mujoco_env.MujocoEnv`; the
-            default camera tracks the root body. ``"human"`` (a window) is listed in
+        render_mode: as :class:`~gymnasium.envs.mujoco.mujoco_env.MujocoEnv`; the default
+            camera tracks the root body. ``"human"`` (a window) is listed in
             ``metadata["render_modes"]`` only when ``DISPLAY`` or ``WAYLAND_DISPLAY`` is set
             (off-screen modes use ``MUJOCO_GL``, e.g. ``egl``).
+        width: render width (pixels).
+        height: render height (pixels).
     """
 
     metadata = {"render_modes": (["human"] if _HAS_DISPLAY else [])

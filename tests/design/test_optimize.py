@@ -26,6 +26,8 @@ def test_walk_score_is_deterministic_and_normalised(quadruped):
     b = walk_score(quadruped, trials=2, seconds=1.5, settle=0.5)
     assert a == b and a["score"] > 0
     assert a["score"] == pytest.approx(a["speed"] / a["extent"])
+    # a robot that counts as fallen from the first sample has walked nothing
+    assert walk_score(quadruped, trials=2, seconds=1.5, settle=0.5, max_tilt=0.0)["score"] == 0
 
 
 def test_scores_of_robots_that_cannot_do_the_task(tmp_path):
