@@ -18,7 +18,7 @@ import torch
 from robovae.data.features import Feature, FeatureSet, get_feature_set
 from robovae.data.graph import RobotData, children
 
-__all__ = ["GraphView", "as_feature_set", "ceil32", "floor32"]
+__all__ = ["GraphView", "as_feature_set", "ceil32", "floor32", "node_mask"]
 
 
 def as_feature_set(feature_set: str | FeatureSet) -> FeatureSet:
@@ -28,6 +28,18 @@ def as_feature_set(feature_set: str | FeatureSet) -> FeatureSet:
         KeyError: unknown set name.
     """
     return get_feature_set(feature_set) if isinstance(feature_set, str) else feature_set
+
+
+_TYPE_MASKS: dict[tuple[str, int], np.ndarray] = {}
+
+
+def node_mask(fs: FeatureSet, types) -> np.ndarray:
+    """``fs.mask(types)`` as a NumPy ``[N, dim]`` bool array, from a per-set table made once
+    (indexing a torch tensor per robot costs more than the rest of a rule)."""
+    key = (fs.name, fs.dim)
+    if key not in _TYPE_MASKS:
+        _TYPE_MASKS[key] = fs.type_mask().numpy()
+    return _TYPE_MASKS[key][np.asarray(types, dtype=np.int64)]
 
 
 class GraphView:
@@ -48,7 +60,7 @@ class GraphView:
         self.types = data.node_type.tolist()
         self.parent = data.parent.tolist()
         self.kids = children(self.parent)
-        self.mask = fs.mask(data.node_type).numpy()
+        self.mask = node_mask(fs, self.types)
         self.keys = {f.key for f in fs.features}
 
     def has(self, key: str) -> bool:

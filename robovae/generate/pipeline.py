@@ -247,7 +247,9 @@ def _build_one(item: tuple) -> dict:
     """Write one robot folder and validate it (runs in a worker process)."""
     graph, folder, feature_set, name, scene, validate = item
     try:
-        res = write_robot(graph, folder, feature_set, name=name, scene=scene)
+        # the validator loads the file anyway; append_records syncs the batch's files at once
+        res = write_robot(graph, folder, feature_set, name=name, scene=scene,
+                          check=not validate, durable=False)
     except Exception as e:  # the rules make every graph writable; never lose a whole batch
         return {"rules": [], "counts": {}, "valid": False, "reason": "compile",
                 "detail": f"writer error: {' '.join(str(e).split())}"}
@@ -306,7 +308,10 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
 
 
 def append_records(manifest: TextIO, records: Sequence[dict]) -> None:
-    """Append manifest lines and make them durable (flush + fsync) before returning."""
+    """Append manifest lines and make them durable (flush + fsync) before returning. The robot
+    folders of the lines, written without a per-file fsync, are first flushed to disk with one
+    ``os.sync()``, so that a line never survives a crash that its robot did not."""
+    os.sync()
     for rec in records:
         manifest.write(json.dumps(rec) + "\n")
     manifest.flush()

@@ -58,7 +58,12 @@ from robovae.data.features import GEOM, GEOM_TYPE_IDS, GEOM_TYPES, JOINT, LINK, 
 from robovae.data.graph import RobotData
 from robovae.generate.bodies import joint_types, link_structure
 from robovae.generate.link_geometry import LinkFrame, link_geoms, thickness
-from robovae.generate.mjcf_numbers import mjcf_round, mjcf_round_vector, rounded_inertia
+from robovae.generate.mjcf_numbers import (
+    mjcf_round,
+    mjcf_round_rows,
+    mjcf_round_vector,
+    rounded_inertia,
+)
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS
 from robovae.generate.rules_mass import MIN_INERTIA, MIN_MASS
 
@@ -104,7 +109,10 @@ class SpecBuilder:
     def __init__(self, data: RobotData, fs: FeatureSet, name: str, actuators: ActuatorMode,
                  self_collision: bool) -> None:
         self.fs, self.name = fs, name
-        self.x = data.x.detach().cpu().double().numpy()
+        x = data.x.detach().cpu().double().numpy().copy()
+        for f in fs.features:  # every value as MJCF output writes it, in one pass per feature
+            x[:, fs.slice(f.key)] = mjcf_round_rows(x[:, fs.slice(f.key)])
+        self.x = x
         self.types = data.node_type.tolist()
         self.parent = data.parent.tolist()
         self.keys = {f.key for f in fs.features}
@@ -116,8 +124,12 @@ class SpecBuilder:
         self.free_bodies: list[mujoco.MjsBody] = []
 
     def get(self, i: int, key: str) -> np.ndarray:
-        """The columns of feature ``key`` of node ``i``."""
+        """The columns of feature ``key`` of node ``i`` (rounded as MJCF writes them)."""
         return self.x[i, self.fs.slice(key)]
+
+    def vec(self, i: int, key: str) -> list[float]:
+        """:meth:`get` as a list (for the spec's setters)."""
+        return self.x[i, self.fs.slice(key)].tolist()
 
     def has(self, key: str) -> bool:
         """Whether the feature set has ``key``."""
@@ -142,21 +154,21 @@ class SpecBuilder:
     def _joint(self, body: mujoco.MjsBody, j: int, jtype: str, name: str) -> mujoco.MjsJoint:
         joint = body.add_joint(name=name, type=_JNT[jtype])
         if jtype != "free":
-            joint.axis = mjcf_round_vector(self.get(j, "joint.axis"))
-            joint.pos = mjcf_round_vector(self.get(j, "joint.pos"))
+            joint.axis = self.vec(j, "joint.axis")
+            joint.pos = self.vec(j, "joint.pos")
         lo, hi = (float(a) for a in self.get(j, "joint.range"))
         limited = lo != 0.0 or hi != 0.0
         if self.has("joint.limited"):
             limited = limited and self.get(j, "joint.limited")[0] >= 0.5
         if limited and jtype != "free":
             joint.limited = _TRUE
-            joint.range = mjcf_round_vector([lo, hi])
+            joint.range = [lo, hi]
         else:
             joint.limited = _FALSE
-        joint.damping[0] = mjcf_round(self.get(j, "joint.damping")[0])
-        joint.armature = mjcf_round(self.get(j, "joint.armature")[0])
-        joint.frictionloss = mjcf_round(self.get(j, "joint.frictionloss")[0])
-        joint.stiffness[0] = mjcf_round(self.get(j, "joint.stiffness")[0])
+        joint.damping[0] = float(self.get(j, "joint.damping")[0])
+        joint.armature = float(self.get(j, "joint.armature")[0])
+        joint.frictionloss = float(self.get(j, "joint.frictionloss")[0])
+        joint.stiffness[0] = float(self.get(j, "joint.stiffness")[0])
         return joint
 
     def _actuate(self, spec: mujoco.MjSpec, j: int, jtype: str, jname: str) -> None:
@@ -165,10 +177,10 @@ class SpecBuilder:
         flagged = self.has("joint.actuated") and self.get(j, "joint.actuated")[0] >= 0.5
         if self.actuators == "auto" and self.has("joint.actuated") and not flagged:
             return
-        gear = mjcf_round(self.get(j, "joint.gear")[0]) if flagged and self.has("joint.gear") \
+        gear = float(self.get(j, "joint.gear")[0]) if flagged and self.has("joint.gear") \
             else DEFAULT_GEAR
         if flagged and self.has("joint.ctrlrange"):
-            ctrl = mjcf_round_vector(self.get(j, "joint.ctrlrange"))
+            ctrl = self.vec(j, "joint.ctrlrange")
         else:
             ctrl = list(DEFAULT_CTRLRANGE)
         act = spec.add_actuator(name=f"{jname}_motor", target=jname,
@@ -205,7 +217,7 @@ class SpecBuilder:
     def _anchor(self, i: int) -> np.ndarray:
         """Link ``i``'s anchor in its body frame: its first joint's position, else 0."""
         chain = self.chain[i]
-        return np.array(mjcf_round_vector(self.get(chain[0], "joint.pos"))) if chain \
+        return np.array(self.vec(chain[0], "joint.pos")) if chain \
             and self.jtypes[chain[0]] != "free" else np.zeros(3)
 
     def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
@@ -215,8 +227,8 @@ class SpecBuilder:
         for c in kids:
             t = np.zeros(3)
             mujoco.mju_rotVecQuat(t, self._anchor(c),
-                                  np.array(mjcf_round_vector(self.get(c, "link.quat"))))
-            t += np.array(mjcf_round_vector(self.get(c, "link.pos")))
+                                  np.array(self.vec(c, "link.quat")))
+            t += np.array(self.vec(c, "link.pos"))
             c_size = np.maximum(self.get(c, "link.size"), 0.0) if self.has("link.size") \
                 else np.zeros(3)
             children.append((t, thickness(c_size)))
@@ -235,12 +247,12 @@ class SpecBuilder:
 
     def _graph_geom(self, body: mujoco.MjsBody, g: int) -> None:
         k = int(np.argmax(self.get(g, "geom.type")))
-        size = mjcf_round_vector(self.get(g, "geom.size"))
+        size = self.vec(g, "geom.size")
         size[_GEOM_SIZES[k]:] = [0.0] * (3 - _GEOM_SIZES[k])  # MJCF keeps the used ones only
         geom = body.add_geom(name=f"geom{g}", type=mujoco.mjtGeom(GEOM_TYPE_IDS[k]),
-                             pos=mjcf_round_vector(self.get(g, "geom.pos")),
-                             quat=mjcf_round_vector(self.get(g, "geom.quat")), size=size,
-                             friction=mjcf_round_vector(self.get(g, "geom.friction")),
+                             pos=self.vec(g, "geom.pos"),
+                             quat=self.vec(g, "geom.quat"), size=size,
+                             friction=self.vec(g, "geom.friction"),
                              rgba=_GEOM_RGBA)
         collides = self.get(g, "geom.collides")[0] >= 0.5 if self.has("geom.collides") else True
         geom.contype = int(collides)
@@ -271,8 +283,8 @@ class SpecBuilder:
             parent_body = bodies[self.anc[i]] if self.anc[i] >= 0 else spec.worldbody
             top_level = self.anc[i] < 0
             groups = self._groups(self.chain[i], top_level)
-            pos = mjcf_round_vector(self.get(i, "link.pos"))
-            quat = mjcf_round_vector(self.get(i, "link.quat"))
+            pos = self.vec(i, "link.pos")
+            quat = self.vec(i, "link.quat")
             for k, group in enumerate(groups[:-1]):  # > 6 DoFs: light intermediate bodies
                 mid = parent_body.add_body(name=f"link{i}_split{k}", pos=pos, quat=quat)
                 pos, quat = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]

@@ -11,15 +11,18 @@ in order) whose lengths and masses agree within :data:`MIRROR_TOL` (10 %: ``|a -
 (:func:`is_symmetric`) when its limbs form at least one mirrored pair and at most one limb
 (a head, a tail, an abdomen carrying the legs) is left unpaired.
 
-**Mirroring** (:func:`mirror_limbs`, a generation choice reported as ``mirror_limbs``): among the
-trunk's limbs, two limbs are *meant* as a pair (near-mirror) when their attachments are mirror
-images across the trunk's sagittal plane (MuJoCo's convention: x forward, y left, so
-``M = diag(1, -1, 1)``): ``|M p_A - p_B| ≤`` :data:`ATTACH_TOL` ``· max(|p_A|, |p_B|)``,
-neither lies on the plane (``|p_y| >`` :data:`ATTACH_TOL` ``· |p|``), and their link counts
-differ by at most ``max(1,`` :data:`LINK_COUNT_TOL` ``· the larger)``. Front and back legs are
-never paired (they differ in real robots). Pairs are taken greedily, closest first, and each
-pair's second limb (in pre-order) is replaced by the mirror image of the first: topology,
-lengths, masses and every other feature. The mirror image of a subtree conjugates every local
+**Mirroring** (:func:`mirror_limbs`, a generation choice reported as ``mirror_limbs``): two
+limbs of the trunk are a *near-mirror* pair when their link counts differ by at most
+``max(1,`` :data:`LINK_COUNT_TOL` ``· the larger)``, their total lengths and total masses differ
+by a factor whose product is at most :data:`SIZE_RATIO` ``²``, and at least one of them lies off
+the trunk's sagittal plane (MuJoCo's convention: x forward, y left; the reflection is
+``M = diag(1, -1, 1)``; a limb with ``|p_y| ≤`` :data:`ATTACH_TOL` ``· |p|`` lies on it: a
+head, a tail, the front and back legs of a planar robot, which are never paired). Candidate
+pairs are scored by ``|M p_A - p_B| / max(|p_A|, |p_B|) + |log(L_A / L_B)| + |log(m_A / m_B)|``
+and taken greedily, best first; each pair's *source* (the first in pre-order, unless only the
+second lies off the plane) is kept and the other limb is replaced, at its place among the
+trunk's children, by the source's mirror image: topology, lengths, masses and every other
+feature, attached at ``M p_A``. The mirror image of a subtree conjugates every local
 frame by ``M``: positions ``p → M p`` (``link.pos``, ``link.ipos``, ``joint.pos``),
 orientations ``(w, v) → (w, -M v)`` (``link.quat``, ``link.iquat``), hinge/slide axes
 ``a → -M a`` (so that a joint range keeps its sign), everything else (masses, inertias, sizes,
@@ -35,17 +38,19 @@ import torch
 from robovae.data.features import JOINT, LINK, FeatureSet
 from robovae.data.graph import RobotData, tree_data
 from robovae.generate.bodies import subtree, trunk
-from robovae.generate.graph_view import GraphView, as_feature_set
+from robovae.generate.graph_view import GraphView, as_feature_set, node_mask
 
 __all__ = ["ATTACH_TOL", "MIRROR_TOL", "is_symmetric", "limbs", "mirror_limbs", "mirrored_pairs"]
 
 #: Relative tolerance on lengths and masses of a mirrored pair.
 MIRROR_TOL = 0.10
-#: Relative tolerance on mirrored attachment points for :func:`mirror_limbs`.
+#: A limb whose attachment has ``|p_y| ≤ ATTACH_TOL |p|`` lies on the sagittal plane.
 ATTACH_TOL = 0.25
+#: Largest ratio of total lengths times total masses of a near-mirror pair.
+SIZE_RATIO = 2.0
 #: Largest difference in link count (fraction of the larger limb, at least 1) of a near-mirror
 #: pair for :func:`mirror_limbs`.
-LINK_COUNT_TOL = 0.25
+LINK_COUNT_TOL = 0.5
 _M = np.array([1.0, -1.0, 1.0])  # reflection across the trunk's xz (sagittal) plane
 _FLOOR = {"len": 1e-3, "mass": 1e-3}
 
@@ -115,28 +120,30 @@ def _n_links(v: GraphView, root: int) -> int:
 
 
 def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
-    """Near-mirror pairs across the trunk's sagittal plane, closest first (module
-    docstring)."""
-    pos = {}
+    """Near-mirror pairs ``(source, replaced)``, best first (module docstring)."""
+    info = {}
     for r in roots:
         f = _first_link(v, r)
         if f >= 0:
-            pos[r] = np.asarray(v.get(f, "link.pos"), dtype=float)
+            p = np.asarray(v.get(f, "link.pos"), dtype=float)
+            lengths, masses = _profile(v, r)
+            off = abs(p[1]) > ATTACH_TOL * max(float(np.linalg.norm(p)), 1e-9)
+            info[r] = (p, len(lengths), float(lengths.sum()) + 1e-9,
+                       float(masses.sum()) + 1e-9, off)
     cands = []
     for ia, a in enumerate(roots):
         for b in roots[ia + 1:]:
-            if a not in pos or b not in pos:
+            if a not in info or b not in info:
                 continue
-            pa, pb = pos[a], pos[b]
+            (pa, na, la, ma, off_a), (pb, nb, lb, mb, off_b) = info[a], info[b]
+            if not (off_a or off_b) or abs(na - nb) > max(1, LINK_COUNT_TOL * max(na, nb)):
+                continue  # both on the plane, or not meant as a pair
+            size_gap = abs(np.log(la / lb)) + abs(np.log(ma / mb))
+            if size_gap > 2.0 * np.log(SIZE_RATIO):
+                continue
             scale = max(float(np.linalg.norm(pa)), float(np.linalg.norm(pb)), 1e-9)
-            if min(abs(pa[1]), abs(pb[1])) <= ATTACH_TOL * scale:
-                continue  # on the plane: its own mirror
-            na, nb = _n_links(v, a), _n_links(v, b)
-            if abs(na - nb) > max(1, LINK_COUNT_TOL * max(na, nb)):
-                continue  # not meant as a pair
-            d = float(np.linalg.norm(_M * pa - pb))
-            if d <= ATTACH_TOL * scale:
-                cands.append((d, a, b))
+            score = float(np.linalg.norm(_M * pa - pb)) / scale + size_gap
+            cands.append((score, a, b) if off_a else (score, b, a))
     used: set[int] = set()
     pairs = []
     for _, a, b in sorted(cands):
@@ -199,7 +206,7 @@ def mirror_limbs(data: RobotData, feature_set: str | FeatureSet = "paper34"
 
     emit(0, -1, False)
     x = torch.from_numpy(np.stack(rows)).to(torch.float32)
-    x = torch.where(torch.from_numpy(fs.mask(torch.tensor(types)).numpy()), x,
+    x = torch.where(torch.from_numpy(node_mask(fs, types)), x,
                     torch.zeros((), dtype=torch.float32))
     changed = parent != v.parent or types != v.types or not torch.equal(x, data.x)
     if not changed:

@@ -29,6 +29,8 @@ precision:
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 import os
 import tempfile
@@ -110,6 +112,8 @@ def _lowest_point(model: mujoco.MjModel) -> float:
 def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: ActuatorMode,
            clearance: float | None, self_collision: bool
            ) -> tuple[mujoco.MjSpec, mujoco.MjModel, list[str]]:
+    """The spec (floor placement applied), a model compiled before the placement (its counts
+    are right, its root height is not) and the fired rules."""
     if actuators not in ("auto", "all", "none"):
         raise ValueError(f"actuators must be 'auto', 'all' or 'none', not {actuators!r}")
     fired: list[str] = []
@@ -121,9 +125,8 @@ def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: A
     model = _compile(spec)
     if clearance is not None and builder.free_bodies and model.ngeom:
         dz = clearance - _lowest_point(model)
-        for body in builder.free_bodies:
+        for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]
-        model = _compile(spec)
     return spec, model, fired
 
 
@@ -166,11 +169,20 @@ def graph_to_spec(
 def scene_xml(robot_file: str = "robot.xml", name: str = "scene") -> str:
     """MJCF of a scene: ``<include file=robot_file/>``, a floor plane and a light.
 
-    The floor and light are built with ``MjSpec``; the ``<include>`` element (which ``MjSpec``
-    cannot express) is added to its XML tree.
+    The floor and light are built with ``MjSpec`` (once per process); the ``<include>``
+    element (which ``MjSpec`` cannot express) and the model name are set in its XML tree.
     """
+    root = copy.deepcopy(_scene_tree())
+    root.set("model", name)
+    root.insert(0, ET.Element("include", file=robot_file))
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="unicode") + "\n"
+
+
+@functools.cache
+def _scene_tree() -> ET.Element:
     spec = mujoco.MjSpec()
-    spec.modelname = name
+    spec.modelname = "scene"
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
                             rgba=[0.82, 0.84, 0.86, 1.0])
     spec.worldbody.add_light(name="sun", pos=[0, 0, 4], dir=[0, 0, -1],
@@ -179,19 +191,19 @@ def scene_xml(robot_file: str = "robot.xml", name: str = "scene") -> str:
     root = ET.fromstring(spec.to_xml())
     for compiler in root.findall("compiler"):  # the robot file's compiler settings apply
         root.remove(compiler)
-    root.insert(0, ET.Element("include", file=robot_file))
-    ET.indent(root, space="  ")
-    return ET.tostring(root, encoding="unicode") + "\n"
+    return root
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    """Write ``text`` to a temporary file beside ``path``, then ``os.replace`` it into place."""
+def _atomic_write(path: Path, text: str, durable: bool = True) -> None:
+    """Write ``text`` to a temporary file beside ``path`` (fsync'ed when ``durable``), then
+    ``os.replace`` it into place."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
+            if durable:
+                f.flush()
+                os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -210,12 +222,16 @@ def write_robot(
     actuators: ActuatorMode = "auto",
     clearance: float | None = DEFAULT_CLEARANCE,
     self_collision: bool = False,
+    check: bool = True,
+    durable: bool = True,
 ) -> WriteResult:
     """Write a robot graph as ``out_dir/robot.xml`` (and ``out_dir/scene.xml``).
 
     Both files are written atomically (temporary file in ``out_dir``, then ``os.replace``),
-    ``robot.xml`` first: when ``scene.xml`` exists, the folder is complete. The robot XML is
-    checked to load with MuJoCo before anything is written.
+    ``robot.xml`` first: when ``scene.xml`` exists, the folder is complete. With ``check`` the
+    robot XML is loaded with MuJoCo before anything is written (callers that validate the file
+    anyway may skip it); with ``durable`` each file is fsync'ed before it is moved into place
+    (callers that sync a whole batch at once, e.g. with ``os.sync``, may skip it).
 
     Args:
         data: the robot graph (as in :func:`graph_to_spec`).
@@ -227,6 +243,8 @@ def write_robot(
         self_collision: as in :func:`graph_to_spec`.
         out_dir: folder to write into (created if missing).
         scene: also write ``scene.xml`` (floor, light, ``<include file="robot.xml"/>``).
+        check: load the XML with MuJoCo before writing.
+        durable: fsync every file before ``os.replace``.
 
     Raises:
         ValueError: when MuJoCo rejects the model (only possible with ``rules=False``).
@@ -234,19 +252,20 @@ def write_robot(
     fs = as_feature_set(feature_set)
     spec, model, fired = _build(data, fs, name, rules, actuators, clearance, self_collision)
     xml = spec.to_xml()
-    with capture_mujoco_warnings():
-        try:
-            mujoco.MjModel.from_xml_string(xml)
-        except Exception as e:
-            msg = " ".join(str(e).split())
-            raise ValueError(f"the written robot XML does not load: {msg}") from None
+    if check:
+        with capture_mujoco_warnings():
+            try:
+                mujoco.MjModel.from_xml_string(xml)
+            except Exception as e:
+                msg = " ".join(str(e).split())
+                raise ValueError(f"the written robot XML does not load: {msg}") from None
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     robot_path = out / "robot.xml"
-    _atomic_write(robot_path, xml)
+    _atomic_write(robot_path, xml, durable)
     scene_path = None
     if scene:
         scene_path = out / "scene.xml"
-        _atomic_write(scene_path, scene_xml(robot_path.name, f"{name}_scene"))
+        _atomic_write(scene_path, scene_xml(robot_path.name, f"{name}_scene"), durable)
     return WriteResult(robot_path, scene_path, fired, n_bodies=model.nbody - 1,
                        n_joints=model.njnt, n_geoms=model.ngeom, n_actuators=model.nu)

@@ -97,3 +97,21 @@ def test_front_and_back_legs_are_not_mirrored():
         g = model_to_graph(load_robot(ZOO[name]).model, "paper34")
         out, changed = mirror_limbs(g)
         assert out is g and not changed, name
+
+
+def test_a_decoded_pair_off_its_mirror_place_is_mirrored():
+    """Ant with one leg moved and made heavier (as a decoder might): the pair is restored."""
+    g = model_to_graph(load_robot(ZOO["gym_ant"]).model, "paper34")
+    assert is_symmetric(g)
+    v = GraphView(g, FS)
+    _, roots = limbs(v)
+    leg = _subtree_links(v, roots[1])
+    x = g.x.clone()
+    x[leg[0], FS.slice("link.pos")] += torch.tensor([0.05, 0.03, 0.02])
+    x[leg, FS.slice("link.mass")] *= 1.3
+    from robovae.data.graph import tree_data
+
+    bent = tree_data(g.parent, g.node_type, x, FS)
+    assert not is_symmetric(bent)
+    out, changed = mirror_limbs(bent)
+    assert changed and is_symmetric(out) and out.num_nodes == g.num_nodes

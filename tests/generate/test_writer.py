@@ -270,13 +270,26 @@ def test_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
     assert list(out.iterdir()) == []  # neither a half-written robot.xml nor a temp file
 
 
+def test_fast_write_gives_the_same_files(tmp_path):
+    """Without the load check and the per-file fsync the files are the same; the scene (built
+    once per process) names the robot's scene."""
+    g = quadruped("paper34")
+    a = write_robot(g, tmp_path / "a", "paper34", name="q")
+    b = write_robot(g, tmp_path / "b", "paper34", name="q", check=False, durable=False)
+    for f in ("robot.xml", "scene.xml"):
+        assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes()
+    assert a.counts == b.counts
+    assert scene_xml("r.xml", "other").count('model="other"') == 1
+    assert 'model="q_scene"' in (tmp_path / "a" / "scene.xml").read_text()
+
+
 def test_scene_is_written_after_the_robot(tmp_path, monkeypatch):
     calls = []
     real = writer_module._atomic_write
 
-    def spy(path, text):
+    def spy(path, text, durable=True):
         calls.append(path.name)
-        real(path, text)
+        real(path, text, durable)
 
     monkeypatch.setattr(writer_module, "_atomic_write", spy)
     write_robot(quadruped("paper34"), tmp_path, "paper34")
