@@ -120,11 +120,14 @@ def _under(model: mujoco.MjModel, b: int, t: int) -> bool:
 def test_real_joint_patterns() -> None:
     for seed in range(8):
         quad = procedural_spec(seed, "quadruped").compile()
-        assert model_to_graph(quad).num_nodes == 26  # go1/go2/a1/spot tree
-        assert hinges_per_limb(quad) == [3, 3, 3, 3]
+        # go1/go2/a1/spot tree, sometimes with 1-2 welded sensor bodies (barkour_vb)
+        assert model_to_graph(quad).num_nodes in (26, 27, 28)
+        assert [h for h in hinges_per_limb(quad) if h] == [3, 3, 3, 3]
         axes = np.abs(quad.jnt_axis[1:4]).argmax(1).tolist()
         assert axes == [0, 1, 1]  # abduction x, flexion y, knee y
         assert hinges_per_limb(procedural_spec(seed, "hexapod").compile()) == [3] * 6
+        assert sum(model_to_graph(procedural_spec(s, "quadruped").compile()).num_nodes == 26
+                   for s in range(40)) >= 24  # mostly the plain 26-node tree
         human = procedural_spec(seed, "humanoid").compile()
         legs = hinges_per_limb(human)[:2]
         assert legs[0] == legs[1] and 5 <= legs[0] <= 8  # 5-7 + a toe hinge

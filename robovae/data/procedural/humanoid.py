@@ -6,7 +6,8 @@ knee (y), an ankle pitch (y), usually an ankle roll (x) with a flat box foot, ra
 hinge. With probability ``upper_body`` a waist of 0-3 hinges (``z``, ``z y``, ``z x y``) holds
 the torso (0: the torso is part of the pelvis); the torso carries two arms of 4-7 hinges
 (shoulder ``y x z``, elbow ``y``, wrist ``x``/``y``/``z``) ending in nothing, a parallel
-gripper or a hand of 2-5 fingers with 1-3 hinges each, and a neck of 0-2 hinges with a head.
+gripper or a hand of 2-5 fingers with 1-3 hinges each, a neck of 0-2 hinges with a head, and
+0-2 welded sensor bodies (n1).
 """
 
 from __future__ import annotations
@@ -14,7 +15,15 @@ from __future__ import annotations
 import math
 
 from robovae.data.procedural.blueprint import Geom, Part
-from robovae.data.procedural.parts import AUTO, Link, capsule, chain, finger_hand, gripper
+from robovae.data.procedural.parts import (
+    AUTO,
+    Link,
+    capsule,
+    chain,
+    finger_hand,
+    gripper,
+    sensors,
+)
 from robovae.data.procedural.sampler import G, Sampler
 
 _ARM_AXES = {4: "yxzy", 5: "yxzyx", 6: "yxzyxy", 7: "yxzyzxy"}
@@ -119,6 +128,7 @@ def sample(s: Sampler) -> tuple[Part, bool]:
         head = head.add(Part(f"neck{k}", neck_top, [s.hinge(ax, (-1.0, 1.0), gear=AUTO)]))
         neck_top = (0.0, 0.0, 0.04 * scale)
         head.geoms.append(capsule((0.0, 0.0, 0.0), neck_top, 0.02 * scale, 0.01 * M))
+    sensors(s, torso, "", (0.6 * tw, 0.6 * tw, top[2]))
     r = s.u("head_radius")
     head.geoms.append(Geom("sphere", 0.05 * M, r, pos=(0.0, 0.0, neck_top[2] + r)))
     return pelvis, True

@@ -106,6 +106,17 @@ def finger_hand(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec,
         chain(body, f"{prefix}f{k}_", add(tip, side, spread), links)
 
 
+def sensors(s: Sampler, body: Part, prefix: str, half: Vec) -> None:
+    """0-2 welded sensor bodies (IMU, camera: no joint, a small box) on the top and front of
+    ``body``, whose geometry spans ``half`` (half-sizes): ``sensors`` of the class sets the
+    count (barkour_vb, n1 carry such bodies)."""
+    places = [(0.0, 0.0, half[2]), (half[0], 0.0, 0.3 * half[2])]
+    for k in range(int(s.pick("sensors"))):
+        box = s.u((0.01, 0.03))
+        part = body.add(Part(f"{prefix}sensor{k}", places[k]))
+        part.geoms.append(Geom("box", s.u((0.01, 0.1)), pos=(0.0, 0.0, 0.0), half=(box,) * 3))
+
+
 def wheel(body: Part, name: str, pos: Vec, radius: float, width: float, mass: float,
           joint: Joint) -> Part:
     """A wheel body at ``pos`` spinning about y: a cylinder across y."""

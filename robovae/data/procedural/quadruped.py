@@ -5,7 +5,8 @@ axis, a thigh on a flexion hinge (y) tilted ``thigh_tilt`` from vertical, a calf
 hinge (y) that brings the foot sphere back under the hip; the foot is at least 1.5 times as
 thick as the calf, so it is the lowest point. Knees point back, front, inward
 (front back, rear front) or outward. The tree is the 26-node quadruped of real robots: free
-joint, torso, 4 × (3 hinges + 3 bodies).
+joint, torso, 4 × (3 hinges + 3 bodies), and with probability 0.2 one or two welded sensor
+bodies on the torso (barkour_vb).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from __future__ import annotations
 import math
 
 from robovae.data.procedural.blueprint import Geom, Part
-from robovae.data.procedural.parts import capsule
+from robovae.data.procedural.parts import capsule, sensors
 from robovae.data.procedural.sampler import G, Sampler
 
 
@@ -51,4 +52,5 @@ def sample(s: Sampler) -> tuple[Part, bool]:
         cf = th.add(Part(f"{name}_calf", t_vec, [s.hinge("y", knee, gear=1.5 * load)]))
         cf.geoms.append(capsule((0.0, 0.0, 0.0), c_vec, min(0.5 * radius, foot / 1.5), masses[2]))
         cf.geoms.append(Geom("sphere", 0.1 * masses[2], foot, pos=c_vec))
+    sensors(s, torso, "", (lx, wy, hz))
     return torso, True
