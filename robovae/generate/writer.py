@@ -96,17 +96,19 @@ def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
 
 
 def _lowest_point(model: mujoco.MjModel) -> float:
-    """Lowest world z over all geoms' bounding boxes at ``qpos0``."""
+    """Lowest world z over all geoms' bounding boxes at ``qpos0`` (``inf`` without geoms):
+    ``min_g  z_g + R_g[2] · c_g - |R_g[2]| · h_g`` for each geom's box centre ``c_g`` and
+    half-sizes ``h_g`` in its frame."""
     data = mujoco.MjData(model)
     with capture_mujoco_warnings():
         mujoco.mj_forward(model, data)
-    low = math.inf
-    for g in range(model.ngeom):
-        center, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-        row = data.geom_xmat[g].reshape(3, 3)[2]
-        z = data.geom_xpos[g, 2] + row @ center - np.abs(row) @ half
-        low = min(low, float(z))
-    return low
+    if not model.ngeom:
+        return math.inf
+    row = data.geom_xmat.reshape(-1, 3, 3)[:, 2, :]
+    center, half = model.geom_aabb[:, :3], model.geom_aabb[:, 3:]
+    z = data.geom_xpos[:, 2] + np.einsum("gi,gi->g", row, center) \
+        - np.einsum("gi,gi->g", np.abs(row), half)
+    return float(z.min())
 
 
 def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: ActuatorMode,
