@@ -184,6 +184,8 @@ def _commit() -> str:
 
 
 def run_all(specs: list[RunSpec], jobs: int, skip_done: bool) -> list[dict]:
+    """Run ``specs`` (``jobs`` processes at a time, spawned), skipping those that have a
+    ``result.json`` when ``skip_done``; the results of all of them, done and new."""
     todo = [s for s in specs if not (skip_done and (s.out / "result.json").is_file())]
     done = [json.loads((s.out / "result.json").read_text()) for s in specs if s not in todo]
     if jobs <= 1:
