@@ -3,7 +3,8 @@
 For every robot of a group (the zoo: dm_control + gymnasium models; ``--procedural N``
 procedural robots; the Menagerie robots of ``--menagerie``), the original and the writer's
 round trip (``mjcf_to_graph`` in ``--feature-set``, then ``graph_to_spec`` with the rules) are
-measured with :func:`robovae.generate.attachment.attachment`: share of robots with all bodies
+measured with :func:`robovae.evaluate.quality.attachment.attachment`: share of robots with
+all bodies
 attached, mean share of detached bodies, share with self-penetration at rest above 1 cm and the
 writer rules that fired. Prints one table.
 
@@ -25,8 +26,8 @@ from robovae.data.loading import load_robot
 from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
+from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.tables import format_table
-from robovae.generate.attachment import attachment
 from robovae.generate.writer import graph_to_spec
 
 PENETRATION_TOL = 0.01  # m, as robovae.generate.validate

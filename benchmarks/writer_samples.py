@@ -2,7 +2,8 @@
 
 For every folder of ``robovae generate`` (its ``robot_*/robot.xml``) and, as references, the zoo
 (the README model's training robots) and the procedural generator: share of robots with all
-bodies attached and mean share of detached bodies (:mod:`robovae.generate.attachment`), share
+bodies attached and mean share of detached bodies
+(:mod:`robovae.evaluate.quality.attachment`), share
 with self-penetration at rest above 1 cm, share with a single limb on the trunk, and symmetry
 share (:func:`robovae.generate.symmetry.is_symmetric`, on the graph read back from the file).
 
@@ -20,8 +21,8 @@ from robovae.data.loading import load_robot
 from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
+from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.tables import format_table
-from robovae.generate.attachment import attachment
 from robovae.generate.symmetry import mirrored_pairs
 
 PENETRATION_TOL = 0.01  # m

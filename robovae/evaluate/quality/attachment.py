@@ -1,20 +1,21 @@
 """Is the robot in one piece? Detached bodies and self-penetration at its initial pose.
 
 At ``qpos0`` (``mj_forward``), with ``L`` the robot's extent (diagonal of its bounding box,
-:func:`~robovae.evaluate.quality.stage.extent`):
+:func:`~robovae.evaluate.quality.stage.extent`; MuJoCo's ``stat.extent`` would count floors and
+``<statistic>`` overrides: 85 m for dm_control's quadruped):
 
 - a non-root body of the robot (the subtree of :func:`~robovae.data.mjcf.robot_root`) that has
   geoms is **detached** when none of its geoms comes within ``gap · L`` (5 %) of a geom of its
-  parent body (``mujoco.mj_geomDistance``, signed, so touching or overlapping geoms are
-  attached). A body without geoms, or whose parent has none, is not judged. Planes and height
-  fields are left out; every other geom counts (visual ones too: a link drawn away from its
-  joint looks detached). Menagerie files without their mesh files keep only their primitive
-  collision geoms, so they can look detached where the meshes would join them;
-- **self-penetration**: the deepest overlap (m) among the contacts MuJoCo finds at ``qpos0``
-  between two geoms of the robot (``data.contact`` with ``dist < 0``: MuJoCo's own filters
-  apply, so parent-child pairs, ``contype``/``conaffinity``-filtered pairs and ``<exclude>``
-  pairs do not count, exactly the pairs that would push each other apart in simulation); a
-  contact deeper than ``tolerance · L`` (1 %) is penetrating.
+  parent body, or of its nearest ancestor with geoms when the parent has none (a body that
+  only carries a joint is not a gap). Distances are ``mujoco.mj_geomDistance`` (signed:
+  touching or overlapping geoms are attached). Planes and height fields are left out; every
+  other geom counts (visual ones too: a link drawn away from its joint looks detached).
+  Menagerie files without their mesh files keep only their primitive geoms, so they can look
+  detached where the meshes would join them;
+- **self-penetration**: the deepest overlap (m) between two geoms of bodies that are neither
+  the same body nor parent and child (geoms that meet at a joint may overlap), whatever their
+  collision flags (generated robots do not collide with themselves, yet an overlap is still
+  visible); a pair deeper than ``tolerance · L`` (1 %) is penetrating.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import mujoco
+import numpy as np
 
 from robovae.data.mjcf import robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, compiled, extent
@@ -37,8 +39,9 @@ class AttachResult:
     detached: int
     detached_bodies: list[str] = field(default_factory=list)
     penetration: float = 0.0  # deepest overlap between non-adjacent bodies, m
-    penetrating_pairs: int = 0  # contacts deeper than tolerance · extent
+    penetrating_pairs: int = 0  # geom pairs overlapping deeper than tolerance · extent
     extent: float = 0.0  # m
+    gaps: dict[int, float] = field(default_factory=dict)  # body id -> gap to its parent, m
 
     @property
     def all_attached(self) -> bool:
@@ -66,23 +69,33 @@ def _min_distance(model: mujoco.MjModel, data: mujoco.MjData, a: list[int], b: l
                for g1 in a for g2 in b)
 
 
-def _penetration(model: mujoco.MjModel, data: mujoco.MjData, root: int, threshold: float
-                 ) -> tuple[float, int]:
-    """Deepest robot-robot contact overlap (m) and the contacts deeper than ``threshold``."""
-    c = data.contact[:data.ncon]
-    if data.ncon == 0:
-        return 0.0, 0
-    b1, b2 = model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]
-    own = (b1 > 0) & (b2 > 0) & (model.body_rootid[b1] == root) & (model.body_rootid[b2] == root)
-    depth = -c.dist[own]
-    if not depth.size:
-        return 0.0, 0
-    return max(float(depth.max()), 0.0), int((depth > threshold).sum())
+def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, list[int]],
+                 threshold: float) -> tuple[float, int]:
+    """Deepest overlap (m) between geoms of non-adjacent bodies and the pairs deeper than
+    ``threshold``; a bounding-sphere pre-test skips pairs that cannot touch."""
+    parent = model.body_parentid
+    flat = [g for gs in geoms.values() for g in gs]
+    body, pos, rb = model.geom_bodyid, data.geom_xpos, model.geom_rbound
+    deepest, pairs = 0.0, 0
+    for i, g1 in enumerate(flat):
+        b1 = int(body[g1])
+        for g2 in flat[i + 1:]:
+            b2 = int(body[g2])
+            if b1 == b2 or parent[b1] == b2 or parent[b2] == b1:
+                continue
+            if np.linalg.norm(pos[g1] - pos[g2]) > rb[g1] + rb[g2]:
+                continue
+            depth = -float(mujoco.mj_geomDistance(model, data, g1, g2, 0.0, None))
+            deepest = max(deepest, depth)
+            pairs += depth > threshold
+    return deepest, pairs
 
 
-def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01) -> AttachResult:
+def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
+               penetration: bool = True) -> AttachResult:
     """Detached bodies and self-penetration of a robot file, spec or model at ``qpos0``
-    (module docstring; ``gap`` and ``tolerance`` are fractions of the extent).
+    (module docstring; ``gap`` and ``tolerance`` are fractions of the extent; ``penetration``
+    False skips the O(geoms²) overlap search).
 
     Raises:
         RobotFileError: a file that does not load.
@@ -94,15 +107,20 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01) -> Atta
     size = extent(model, data, root)
     geoms = _geoms_by_body(model, root)
     limit = gap * size
-    judged, detached = 0, []
+    out = AttachResult(0, 0, extent=size)
     for b in range(1, model.nbody):
         if b == root or model.body_rootid[b] != root or b not in geoms:
             continue
         p = int(model.body_parentid[b])
+        while p != root and p > 0 and p not in geoms:
+            p = int(model.body_parentid[p])
         if p not in geoms:
             continue
-        judged += 1
-        if _min_distance(model, data, geoms[b], geoms[p], 2.0 * limit) > limit:
-            detached.append(model.body(b).name or f"body{b}")
-    deepest, pairs = _penetration(model, data, root, tolerance * size)
-    return AttachResult(judged, len(detached), detached, deepest, pairs, size)
+        out.bodies += 1
+        out.gaps[b] = _min_distance(model, data, geoms[b], geoms[p], 2.0 * limit)
+        if out.gaps[b] > limit:
+            out.detached += 1
+            out.detached_bodies.append(model.body(b).name or f"body{b}")
+    if penetration:
+        out.penetration, out.penetrating_pairs = _penetration(model, data, geoms, tolerance * size)
+    return out
