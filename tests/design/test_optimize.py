@@ -108,7 +108,9 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "procedural" in text and "convergence" in text
     log = json.loads((out / "log.json").read_text())
-    assert log["evaluations"]["procedural"][0]["score"] > 0  # procedural robots walk a bit
+    # the two procedural baseline robots of seed 0 are a fixed-base arm (walk score 0) and a
+    # humanoid; test_walk_score_is_deterministic_and_normalised checks that a quadruped walks
+    assert [len(log["evaluations"][m]) for m in METHODS] == [2, 2, 2]
     assert np.isfinite([r["score"] for m in METHODS for r in log["evaluations"][m]]).all()
 
 

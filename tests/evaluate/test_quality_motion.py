@@ -59,7 +59,7 @@ def test_standing_accepts_a_model_with_a_floor_and_leaves_it_unchanged() -> None
     model = spec.compile()
     stiffness = model.jnt_stiffness.copy()
     assert standing(model).stands
-    assert (model.jnt_stiffness == stiffness).all() and model.nu == 16
+    assert (model.jnt_stiffness == stiffness).all() and model.nu == 12
     with pytest.raises(RobovaeError, match="no floor"):
         standing(procedural_spec(2, "quadruped").compile())
 
@@ -79,7 +79,7 @@ def test_gait_speed_is_seeded_and_a_weak_robot_moves_less() -> None:
     assert strong.speed == again.speed and strong.speed != other.speed
     assert strong.rollouts == 8 and strong.unstable == 0 and strong.seconds == pytest.approx(2)
     assert strong.speed == pytest.approx(strong.speed_m_s / strong.extent)
-    assert strong.amplitude.shape == (16,) and 0.5 <= strong.frequency <= 3.0
+    assert strong.amplitude.shape == (12,) and 0.5 <= strong.frequency <= 3.0
     assert weak.speed < 0.25 * strong.speed
     assert gait_speed(procedural_spec(2, "quadruped"), **FAST) == strong.speed
 

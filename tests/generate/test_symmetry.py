@@ -24,8 +24,16 @@ ZOO = dict(zoo_files()[0])
 
 @cache
 def _hexapod():
-    """Procedural hexapod: six legs at (x, ±y, 0), drawn independently (not mirrored)."""
-    return model_to_graph(procedural_spec(1).compile(), "paper34", name="hexapod")
+    """Procedural hexapod (six legs at (x, ±y, 0)) whose legs are all made unequal, as a
+    decoder would give them: leg ``j``'s links ``1.25^j`` times heavier (near-mirror
+    pairs, no mirror images; every leg differs from every other by more than 10 %)."""
+    g = model_to_graph(procedural_spec(1, "hexapod").compile(), "paper34", name="hexapod")
+    v = GraphView(g, FS)
+    mass = FS.columns.index("link.mass")
+    for j, root in enumerate(limbs(v)[1]):
+        for n in _subtree_links(v, root):
+            g.x[n, mass] *= 1.25 ** j
+    return g
 
 
 def _subtree_links(v: GraphView, root: int) -> list[int]:

@@ -28,15 +28,18 @@ def add(a: Vec, b: Vec, k: float = 1.0) -> Vec:
 
 
 def norm(v: Vec) -> float:
+    """Euclidean length of ``v``."""
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
 def unit(v: Vec) -> Vec:
+    """``v / |v|`` (``v`` itself when it is zero)."""
     n = norm(v) or 1.0
     return (v[0] / n, v[1] / n, v[2] / n)
 
 
 def cross(a: Vec, b: Vec) -> Vec:
+    """Cross product ``a × b``."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 

@@ -71,6 +71,7 @@ class Sampler:
         return str(k)
 
     def sign(self) -> float:
+        """+1 or -1 with equal probability."""
         return 1.0 if self.rng.random() < 0.5 else -1.0
 
     def hinge(self, axis: str | Vec, limit: str | tuple | None = "limit",
