@@ -39,18 +39,19 @@ class Step:
 
 @torch.no_grad()
 def latent_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11
-                ) -> tuple[np.ndarray, torch.Tensor, list[torch.Tensor] | None]:
+                ) -> tuple[np.ndarray, torch.Tensor, list[torch.Tensor]]:
     """``(t, z, w)``: ``steps`` evenly spaced ``t`` in [0, 1], ``z_t = (1 - t) mu_a + t mu_b``
-    and, for a model with node latents, each step's node latents (module docstring; ``None``
-    otherwise)."""
+    and each step's node latents (module docstring).
+
+    Raises:
+        ValueError: ``steps < 2``.
+    """
     if steps < 2:
         raise ValueError(f"an interpolation needs at least 2 steps, got {steps}")
     mu, (wa, wb) = model.encode_nodes(Batch.from_data_list([a, b]))
     t = np.linspace(0.0, 1.0, steps)
     tt = torch.as_tensor(t, dtype=mu.dtype, device=mu.device)[:, None]
     z = (1 - tt) * mu[0] + tt * mu[1]
-    if not model.hparams.get("node_latent_dim"):
-        return t, z, None
     na, nb = wa.shape[0], wb.shape[0]
     wa, wb = torch.cat([wa, wb[na:]]), torch.cat([wb, wa[nb:]])  # both max(na, nb) long
     return t, z, [(1 - tk) * wa + tk * wb for tk in tt[:, :, None]]
@@ -61,7 +62,7 @@ def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
     """Decode the latent path from ``a`` to ``b``; with ``out``, write each step's MJCF under
     ``out/step_<k>/`` and (``validate``) simulate it (see the module docstring)."""
     t, z, w = latent_path(model, a, b, steps)
-    graphs = model.decode(z, node_latents=w, clamp=w is None)
+    graphs = model.decode(z, node_latents=w, clamp=False)
     result = []
     for k, (tk, g) in enumerate(zip(t.tolist(), graphs)):
         g, _ = floating_base(g, model.feature_set)

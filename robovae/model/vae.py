@@ -323,7 +323,9 @@ class RoboVAE(L.LightningModule):
 
         Any latent the model can represent decodes within the limits (at most ``max_nodes``
         nodes, depth at most ``max_depth``; defaults from the hyperparameters), however large:
-        huge values saturate the decoder (overflowing logits count as "backtrack"). What cannot
+        huge values saturate the decoder (overflowing logits count as "backtrack"; with
+        ``support_margin``, a feature that overflows to NaN becomes the column's training mean and
+        ±inf the edge of its support). What cannot
         be decoded is refused with a one-line :class:`~robovae.errors.RobovaeError`: a wrong
         shape, NaN/inf rows (:meth:`check_latents`), or — only without ``support_margin`` — a
         latent so large that its decoded features overflow to NaN/inf (the rows are named).
@@ -343,6 +345,8 @@ class RoboVAE(L.LightningModule):
                                     node_latents=node_latents, node_noise=node_noise)
         out, bad = [], []
         for i, (parent, node_type, x) in enumerate(trees):
+            if clamp and hp.support_margin is not None:  # saturated: NaN -> the training mean
+                x = torch.nan_to_num(x, nan=0.0)
             phys = self.normalizer.inverse(x, node_type,
                                            clamp=hp.support_margin if clamp else None)
             out.append(tree_data(parent.cpu(), node_type.cpu(), phys.cpu(), self.feature_set,
