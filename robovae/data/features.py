@@ -52,6 +52,9 @@ class Feature:
         transform: ``log`` for heavy-tailed non-negative values, ``categorical`` for one-hot and
             flags (not standardised), ``none`` otherwise.
         eps: offset of the log transform, in the feature's unit.
+        min_std: smallest ``sigma_c`` of the normalisation, in transformed units: a column that
+            barely varies in the training data (a quaternion that is the identity on most
+            links) is not blown up to hundreds of standard deviations by its rare other values.
         unit: physical unit.
         source: where the value comes from in the compiled ``mujoco.MjModel``.
         doc: description (paper Table 1 wording where it applies).
@@ -67,6 +70,7 @@ class Feature:
     unit: str = ""
     source: str = ""
     doc: str = ""
+    min_std: float = 0.0
 
     @property
     def key(self) -> str:
@@ -170,9 +174,9 @@ def _joint_paper() -> list[Feature]:
                 doc="Allowed motion limits [min, max] (zero when unlimited)"),
         Feature("stiffness", "joint", 1, 0.0, 1e6, "log", 1e-3, "N·m/rad", "jnt_stiffness",
                 "Joint stiffness (spring constant)"),
-        Feature("axis", "joint", 3, -1.0, 1.0, unit="", source="jnt_axis",
+        Feature("axis", "joint", 3, -1.0, 1.0, min_std=0.1, unit="", source="jnt_axis",
                 doc="Axis of rotation / translation, unit vector (local frame)"),
-        Feature("pos", "joint", 3, -10.0, 10.0, unit="m", source="jnt_pos",
+        Feature("pos", "joint", 3, -10.0, 10.0, min_std=0.005, unit="m", source="jnt_pos",
                 doc="Anchor position of the joint in its body frame"),
         Feature("armature", "joint", 1, 0.0, 1e3, "log", 1e-5, "kg·m²", "dof_armature",
                 "Added rotational inertia for the joint's first DoF"),
@@ -186,18 +190,18 @@ def _joint_paper() -> list[Feature]:
 def _link_paper() -> list[Feature]:
     """Appendix E, body rows (22 columns)."""
     return [
-        Feature("pos", "link", 3, -10.0, 10.0, unit="m", source="body_pos",
+        Feature("pos", "link", 3, -10.0, 10.0, min_std=0.005, unit="m", source="body_pos",
                 doc="Body position in its parent frame"),
         Feature("mass", "link", 1, 0.0, 1e4, "log", 1e-4, "kg", "body_mass", "Mass of the body"),
         Feature("inertia", "link", 3, 0.0, 1e4, "log", 1e-7, "kg·m²", "body_inertia",
                 "Diagonal inertia in the inertial frame"),
-        Feature("quat", "link", 4, -1.0, 1.0, source="body_quat",
+        Feature("quat", "link", 4, -1.0, 1.0, min_std=0.1, source="body_quat",
                 doc="Orientation in the parent frame, unit quaternion (w, x, y, z)"),
         Feature("subtreemass", "link", 1, 0.0, 1e5, "log", 1e-4, "kg", "body_subtreemass",
                 "Mass of the body and its descendants"),
-        Feature("ipos", "link", 3, -10.0, 10.0, unit="m", source="body_ipos",
+        Feature("ipos", "link", 3, -10.0, 10.0, min_std=0.005, unit="m", source="body_ipos",
                 doc="Centre of mass in the body frame"),
-        Feature("iquat", "link", 4, -1.0, 1.0, source="body_iquat",
+        Feature("iquat", "link", 4, -1.0, 1.0, min_std=0.1, source="body_iquat",
                 doc="Orientation of the inertial frame in the body frame"),
         Feature("size", "link", 3, 0.0, 10.0, "log", 1e-4, "m", "geom_size",
                 "Size of the body's first collision geom (else first geom; zero if none)"),
@@ -225,9 +229,9 @@ def _geom_full() -> list[Feature]:
         Feature("type", "geom", len(GEOM_TYPES), 0.0, 1.0, "categorical", source="geom_type",
                 doc="Geom primitive one-hot: " + ", ".join(GEOM_TYPES)
                 + " (a mesh becomes a box of its bounding size)"),
-        Feature("pos", "geom", 3, -10.0, 10.0, unit="m", source="geom_pos",
+        Feature("pos", "geom", 3, -10.0, 10.0, min_std=0.005, unit="m", source="geom_pos",
                 doc="Geom position in its body frame"),
-        Feature("quat", "geom", 4, -1.0, 1.0, source="geom_quat",
+        Feature("quat", "geom", 4, -1.0, 1.0, min_std=0.1, source="geom_quat",
                 doc="Geom orientation in its body frame"),
         Feature("size", "geom", 3, 0.0, 10.0, "log", 1e-4, "m", "geom_size",
                 doc="Primitive size parameters (MuJoCo convention)"),
@@ -314,6 +318,7 @@ class Normalizer(nn.Module):
         self.register_buffer("is_log", fs.column_transform("log"), persistent=False)
         self.register_buffer("is_cat", fs.column_transform("categorical"), persistent=False)
         self.register_buffer("eps", fs.column_attr("eps").float(), persistent=False)
+        self.register_buffer("min_std", fs.column_attr("min_std").float(), persistent=False)
 
     def _t(self, x: Tensor) -> Tensor:
         return torch.where(self.is_log, torch.log(x.clamp_min(0.0) + self.eps.clamp_min(1e-12)), x)
@@ -324,7 +329,8 @@ class Normalizer(nn.Module):
 
     @torch.no_grad()
     def fit(self, x: Tensor, node_type: Tensor) -> Normalizer:
-        """Fit ``mu``/``sigma`` per column over the nodes that own it (training split only)."""
+        """Fit ``mu``/``sigma`` per column over the nodes that own it (training split only);
+        ``sigma_c`` is at least the feature's ``min_std`` (1 for a constant column)."""
         mask = self.type_mask[node_type].float()
         t = self._t(x.float()) * mask
         count = mask.sum(0).clamp_min(1.0)
@@ -332,6 +338,7 @@ class Normalizer(nn.Module):
         var = (((t - mean) * mask) ** 2).sum(0) / count
         std = var.sqrt()
         std = torch.where(std < 1e-6, torch.ones_like(std), std)
+        std = torch.maximum(std, self.min_std)
         self.mean.copy_(torch.where(self.is_cat, torch.zeros_like(mean), mean))
         self.std.copy_(torch.where(self.is_cat, torch.ones_like(std), std))
         y = (t - self.mean) / self.std
