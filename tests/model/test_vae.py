@@ -162,6 +162,16 @@ def test_print_config(capsys):
     assert "hidden_dim: 128" in out and "feature_set: paper34" in out
 
 
+@pytest.mark.parametrize("name", sorted(p.stem for p in (REPO / "configs").glob("*.yaml")
+                                        if p.stem != "generate"))
+def test_every_config_parses(name, capsys):
+    """Every training config is accepted by the CLI as it is (keys, types, class paths)."""
+    with pytest.raises(SystemExit) as e:
+        main(["fit", "--config", str(REPO / "configs" / f"{name}.yaml"), "--print_config"])
+    assert e.value.code == 0
+    assert "seed_everything" in capsys.readouterr().out
+
+
 def test_reconstruction_callback_logs_per_robot(trained, tmp_path):
     model, dm, _ = trained
     cb = ReconstructionMetrics(every_n_epochs=1)
