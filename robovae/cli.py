@@ -70,7 +70,8 @@ def cmd_generate(args: argparse.Namespace) -> int:
                       temperature=args.temperature, validate=args.validate,
                       batch_size=args.batch_size, jobs=args.jobs, scene=args.scene,
                       overwrite=args.overwrite, floating=args.floating_base,
-                      mirror=args.mirror_limbs, node_temperature=args.node_temperature)
+                      mirror=args.mirror_limbs, node_temperature=args.node_temperature,
+                      quality=args.quality)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -167,6 +168,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--out holds robots of another checkpoint/seed: delete them first")
     g.add_argument("--mirror-limbs", action=argparse.BooleanOptionalAction, default=True,
                    help="near-mirror limb pairs on the trunk become exact mirror images")
+    g.add_argument("--quality", action=argparse.BooleanOptionalAction, default=True,
+                   help="measure every valid robot: attached, symmetric, standing (about as "
+                   "costly as validation)")
     g.add_argument("--node-temperature", type=float, default=None,
                    help="std multiplier of the node latents' noise (default: --temperature)")
     g.add_argument("--like", help="a robot file: sample variations of it (around its encoded "

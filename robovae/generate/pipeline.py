@@ -187,6 +187,7 @@ def generate(
     floating: bool = True,
     mirror: bool = True,
     node_temperature: float | None = None,
+    quality: bool = True,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -199,7 +200,8 @@ def generate(
     scales the robot latent ``z``; ``node_temperature`` (default: ``temperature``) the node
     latents' noise (the detail of each node). ``mirror``: near-mirror limb pairs become exact
     mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`, reported as
-    ``mirror_limbs``).
+    ``mirror_limbs``). ``quality``: measure every valid robot (attached, symmetric, standing;
+    :func:`~robovae.evaluate.quality.measure.robot_quality`, about as costly as validation).
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
@@ -229,7 +231,8 @@ def generate(
             records = write_records(model, chunk, z, model.decode(z, node_noise=noise), out,
                                     seed=seed,
                                     temperature=temperature, validate=validate, jobs=jobs,
-                                    scene=scene, floating=floating, pool=pool, mirror=mirror)
+                                    scene=scene, floating=floating, pool=pool, mirror=mirror,
+                                    quality=quality)
             append_records(manifest, records)
             bar.update(len(chunk))
     bar.close()
@@ -245,7 +248,7 @@ def worker_pool(jobs: int) -> ProcessPoolExecutor:
 
 def _build_one(item: tuple) -> dict:
     """Write one robot folder and validate it (runs in a worker process)."""
-    graph, folder, feature_set, name, scene, validate = item
+    graph, folder, feature_set, name, scene, validate, quality = item
     try:
         # the validator loads the file anyway; append_records syncs the batch's files at once
         res = write_robot(graph, folder, feature_set, name=name, scene=scene,
@@ -257,7 +260,7 @@ def _build_one(item: tuple) -> dict:
     if validate:
         v = validate_robot(res.robot_path)
         rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
-        if v.valid:  # attached, symmetric, standing ... (robovae.evaluate.quality)
+        if v.valid and quality:  # attached, symmetric, standing ... (robovae.evaluate.quality)
             rec["quality"] = robot_quality(res.robot_path)
     return rec
 
@@ -266,7 +269,8 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   graphs: Sequence[RobotData], out: Path, seed: int = 0,
                   temperature: float = 1.0, validate: bool = True, jobs: int = 0,
                   scene: bool = True, floating: bool = True,
-                  pool: Executor | None = None, mirror: bool = True) -> list[dict]:
+                  pool: Executor | None = None, mirror: bool = True,
+                  quality: bool = True) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
     validate them. Returns one manifest record per robot (the caller appends them).
 
@@ -274,7 +278,8 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     this process). With ``floating``, a robot whose root is a single joint gets a floating
     base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
     ``mirror``, near-mirror limb pairs are mirrored (:func:`~robovae.generate.symmetry.
-    mirror_limbs`, listed as ``mirror_limbs``).
+    mirror_limbs`, listed as ``mirror_limbs``); with ``quality`` (and ``validate``), every
+    valid robot's quality measures go into its record under ``quality``.
     """
     records, items = [], []
     fs = model.feature_set
@@ -292,7 +297,7 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                    latent=[round(float(v), 6) for v in zi], rules=fixes,
                    path=f"robot_{i:06d}/robot.xml")
         records.append(rec)
-        items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate))
+        items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality))
     jobs = jobs or (os.cpu_count() or 1)
     if pool is not None:
         built = list(pool.map(_build_one, items, chunksize=4))

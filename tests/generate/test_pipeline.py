@@ -56,6 +56,18 @@ def test_generate_writes_loadable_robots_and_a_report(trained, tmp_path):
         assert "all bodies attached" in report.format()
 
 
+def test_no_quality_skips_the_measures_and_keeps_the_robots(trained, tmp_path):
+    _, _, ckpt = trained
+    with_q = generate(ckpt, 4, tmp_path / "q", seed=3, jobs=1, progress=False)
+    without = generate(ckpt, 4, tmp_path / "no_q", seed=3, jobs=1, progress=False,
+                       quality=False)
+    recs, bare = read_manifest(tmp_path / "q"), read_manifest(tmp_path / "no_q")
+    assert any("quality" in r for r in recs.values())
+    assert not any("quality" in r for r in bare.values())
+    assert [r["valid"] for r in recs.values()] == [r["valid"] for r in bare.values()]
+    assert "attached" in with_q.format() and "attached" not in without.format()
+
+
 @pytest.mark.parametrize("fixture", ["trained", "trained_nodes"])
 def test_same_seed_gives_byte_identical_files(fixture, request, tmp_path):
     """A robot depends on (checkpoint, seed, index) only, not on the batch it was decoded in
