@@ -46,10 +46,10 @@ from robovae.errors import RobovaeError
 from robovae.generate.pipeline import (
     MANIFEST,
     GenerationReport,
-    _open_manifest,
     append_records,
     claim,
     model_fingerprint,
+    open_manifest,
     read_manifest,
     summarize,
     write_records,
@@ -130,7 +130,7 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
         for rec in records:
             rec.pop("temperature", None)
             rec.update(like=str(robot), radius=radius)
-        with _open_manifest(out / MANIFEST) as manifest:
+        with open_manifest(out / MANIFEST) as manifest:
             append_records(manifest, records)
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 

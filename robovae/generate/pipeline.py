@@ -118,7 +118,7 @@ def read_manifest(out: Path) -> dict[int, dict]:
     return records
 
 
-def _open_manifest(path: Path) -> TextIO:
+def open_manifest(path: Path) -> TextIO:
     """Open a manifest for appending; a torn last line (crash mid-write) is terminated first
     so that the next record starts on its own line."""
     f = path.open("a+")
@@ -222,7 +222,7 @@ def generate(
     bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
                disable=not progress)
     jobs = jobs or (os.cpu_count() or 1)
-    with _open_manifest(out / MANIFEST) as manifest, \
+    with open_manifest(out / MANIFEST) as manifest, \
             (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
         for chunk in _chunks(todo, batch_size):
             z, noise = model.sample_prior(seed, chunk, temperature)

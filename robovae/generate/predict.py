@@ -32,10 +32,10 @@ from robovae.data.latents import LatentIndices  # noqa: F401  (re-exported)
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import (
     RUN,
-    _open_manifest,
     append_records,
     claim,
     model_fingerprint,
+    open_manifest,
     read_manifest,
     summarize,
     worker_pool,
@@ -125,7 +125,7 @@ class RobotWriter(BasePredictionWriter):
                                 temperature=prediction["temperature"], validate=self.validate,
                                 jobs=jobs, scene=self.scene, pool=self._pool)
         # (a torn last line of a killed run is terminated first, as by generate)
-        with _open_manifest(self.out / f"manifest-rank{trainer.global_rank}.jsonl") as manifest:
+        with open_manifest(self.out / f"manifest-rank{trainer.global_rank}.jsonl") as manifest:
             append_records(manifest, records)
 
     def teardown(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
