@@ -7,7 +7,8 @@ Teacher-forced losses say little about what the decoder does on its own, so ever
 ``<stage>/RA``, ``<stage>/RA_true``, ``<stage>/exact``, ``<stage>/FRE`` (means) and
 ``<stage>/RA/<robot>``, ``<stage>/FRE/<robot>`` (per robot); from ``z`` alone (node latents at
 their conditional-prior mean) ``<stage>/RA_z``, ``RA_true_z``, ``exact_z``, ``FRE_z``; and the
-cost of the latents, ``<stage>/KL_z`` and ``<stage>/KL_nodes`` (nats per robot), and
+cost of the latents, ``<stage>/KL_z``, its tree part ``<stage>/KL_tree`` and
+``<stage>/KL_nodes`` (nats per robot), and
 ``<stage>/NELBO_node`` (negative ELBO, nats per node, :func:`~robovae.model.loss.vae_loss`).
 """
 
@@ -37,8 +38,9 @@ def score_split(pl_module, robots, batch_size: int = 64,
 
 
 def latent_costs(pl_module, robots, batch_size: int = 64) -> list[dict[str, float]]:
-    """Per robot: ``kl_z``, ``kl_nodes`` (nats per robot) and ``nelbo_per_node`` (nats) of
-    :meth:`RoboVAE.latent_costs <robovae.model.vae.RoboVAE.latent_costs>`, and ``nodes``."""
+    """Per robot: ``kl_z``, ``kl_tree``, ``kl_nodes`` (nats per robot) and ``nelbo_per_node``
+    (nats) of :meth:`RoboVAE.latent_costs <robovae.model.vae.RoboVAE.latent_costs>`, and
+    ``nodes``."""
     robots = list(robots)
     out: list[dict[str, float]] = []
     for start in range(0, len(robots), batch_size):
@@ -48,7 +50,7 @@ def latent_costs(pl_module, robots, batch_size: int = 64) -> list[dict[str, floa
 
 
 def split_metrics_from_z(pl_module, robots) -> dict[str, float]:
-    """The from-z part of :func:`split_metrics` (``RA_z`` ... ``FRE_z``, ``KL_z``,
+    """The from-z part of :func:`split_metrics` (``RA_z`` ... ``FRE_z``, ``KL_z``, ``KL_tree``,
     ``KL_nodes``, ``NELBO_node``)."""
     names = {"ra": "RA_z", "ra_true": "RA_true_z", "exact": "exact_z", "fre": "FRE_z"}
     s = summarize(score_split(pl_module, robots, from_z=True))
@@ -56,6 +58,7 @@ def split_metrics_from_z(pl_module, robots) -> dict[str, float]:
     costs = latent_costs(pl_module, robots)
     if costs:
         out["KL_z"] = sum(c["kl_z"] for c in costs) / len(costs)
+        out["KL_tree"] = sum(c["kl_tree"] for c in costs) / len(costs)
         out["KL_nodes"] = sum(c["kl_nodes"] for c in costs) / len(costs)
         out["NELBO_node"] = sum(c["nelbo_per_node"] * c["nodes"] for c in costs) / \
             sum(c["nodes"] for c in costs)

@@ -96,6 +96,21 @@ def current_hparams(hparams: dict, path: str | Path | None = None) -> dict:
     return {k: v for k, v in hp.items() if k not in RETIRED_HPARAMS and not k.startswith("_")}
 
 
+def check_current_model(ckpt: dict, path: str | Path | None = None) -> None:
+    """Refuse a checkpoint of the model before the tree latent (its node latents carried the
+    tree; it has no ``tree_encoder``): its weights cannot be read into the current model.
+
+    Raises:
+        RobovaeError: one line that says how to retrain.
+    """
+    state = ckpt.get("state_dict", {})
+    if state and not any(k.startswith("tree_encoder.") for k in state):
+        where = f" {path}:" if path is not None else ""
+        raise RobovaeError(f"robovae:{where} a checkpoint of the earlier model whose node "
+                           "latents carried the tree (no tree latent z_T); retrain it with the "
+                           "current configs, e.g. `robovae fit --config configs/default.yaml`")
+
+
 def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> RoboVAE:
     """A :class:`RoboVAE` in eval mode from a Lightning checkpoint (``weights_only`` loading),
     also from a checkpoint of an earlier version whose model is the current one
@@ -103,13 +118,14 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> Ro
 
     Raises:
         RobovaeError: missing file, a checkpoint that is not plain weights + settings, or one of
-            a removed model variant (one line each).
+            a removed model variant or of the model before the tree latent (one line each).
     """
     path = Path(path)
     ckpt = read_checkpoint(path)  # the same one-line refusals everywhere
     if "state_dict" not in ckpt:
         raise RobovaeError(f"robovae: {path}: not a Lightning checkpoint (no state_dict)")
     hp = current_hparams(ckpt.get("hyper_parameters", {}), path)
+    check_current_model(ckpt, path)
     try:
         model = RoboVAE(**hp)
         model.load_state_dict(ckpt["state_dict"])

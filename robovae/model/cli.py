@@ -28,7 +28,7 @@ from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 
 from robovae.data.datamodule import RobotDataModule
 from robovae.evaluate.callbacks import ReconstructionMetrics
-from robovae.model.checkpoint import read_checkpoint, refusal
+from robovae.model.checkpoint import check_current_model, read_checkpoint, refusal
 from robovae.model.vae import RoboVAE
 
 # ``ckpt_path`` values that Lightning resolves itself (the file is checked when it is read)
@@ -56,7 +56,7 @@ class RoboVAECLI(LightningCLI):
         ckpt = self.config[sub].get("ckpt_path") if sub else None
         if ckpt and not (str(ckpt) in _CKPT_KEYWORDS or str(ckpt).startswith("registry:")
                          or "://" in str(ckpt)):
-            read_checkpoint(Path(ckpt))  # one-line RobovaeError; builds no object
+            check_current_model(read_checkpoint(Path(ckpt)), ckpt)  # one-line RobovaeErrors
 
     def _weights_only(self) -> None:
         """``before_fit/validate/test/predict``: load checkpoints weights-only unless asked."""

@@ -1,44 +1,47 @@
-"""Depth-first tree decoder (paper §4.3, eq. 9–11, with per-node latents): teacher forcing
-and batched greedy decoding.
+"""Depth-first tree decoder (paper §4.3, eq. 9–11): the tree comes from ``z``, per-node latents
+refine the continuous features only. Teacher forcing and batched greedy decoding.
 
-The decoder walks a tree depth-first, like JT-VAE's DFS trace. Node ``i`` is read as its
-one-hot type ``e_i``, ``x_i^p = W^p e_i``, and its own :class:`~robovae.model.tree.TreeGRUCell`
-passes messages:
+The robot latent has two parts, ``z = [z_T, z_G]`` (after JT-VAE's tree and graph latents):
+the **tree latent** ``z_T`` (the first ``tree_latent_dim`` numbers; its encoder reads the tree
+and the node types only) and the rest. The decoder walks a tree depth-first, like JT-VAE's DFS
+trace. Node ``i`` is read as its one-hot type ``e_i`` together with the tree latent,
+``x_i^p = W^p [e_i, z_T]``, and its own :class:`~robovae.model.tree.TreeGRUCell` passes
+messages:
 
 - up message (sent when the walk backtracks from ``c``):
   ``h_{c->p} = GRU(x_c^p, {h_{k->c}}_{k child of c})``;
 - down message (sent when ``p`` expands into ``c``):
   ``h_{p->c} = GRU(x_p^p, {h_{parent(p)->p}} + {h_{k->p}}_{k earlier sibling of c})``.
 
-Every node ``c`` carries a latent ``w_c`` (``node_latent_dim`` wide; its posterior comes from
-:class:`~robovae.model.encoder.TreeEncoder`). A node with ``K`` children makes ``K + 1``
-topology decisions: on arrival and after returning from each child; the first ``K`` are
-"expand" (1), the last "backtrack" (0). With ``k`` the children made so far and ``d_i`` the
-depth, a decision and a node's type read only the node's own latent and that context:
+A node with ``K`` children makes ``K + 1`` topology decisions: on arrival and after returning
+from each child; the first ``K`` are "expand" (1), the last "backtrack" (0). **Structure reads
+the tree latent and the tree decoded so far, nothing else**: with ``m`` the sum of the
+messages node ``i`` has received at the decision, ``k`` its children so far and ``d_i`` its
+depth (eq. 9, 11):
 
 .. math::
-    p_t = \\sigma(u \\cdot \\mathrm{ReLU}(W_4 w_i + b + E_{depth}(d_i) + E_{count}(k) + k\\,c)),
-    \\qquad s_c = V^c w_c + b^c
+    p_t = \\sigma(u \\cdot \\mathrm{ReLU}(W_z z_T + W_m m + E_t(t_i) + E_d(d_i) + E_k(k)
+          + k\\,c)), \\qquad
+    s_c = U^c\\, \\mathrm{ReLU}(W^c_z z_T + W^c_h h_{p \\to c} + E^c_d(d_c))
 
 (embeddings clamped at ``max_depth_embed`` / ``max_children_embed``; the linear ``k c`` lets
-counts beyond the embedded ones extrapolate). Features (eq. 10, with a linear path from the
-node latent, so a value outside the training range moves the output linearly):
+counts beyond the embedded ones extrapolate). Features (eq. 10) read all of ``z``, the parent's
+message, the node's type and its latent ``w_c`` (``node_latent_dim`` wide; posterior from
+:class:`~robovae.model.encoder.TreeEncoder`), with a linear path from ``w_c``:
 
 .. math::
-    a = \\mathrm{ReLU}(W_1^l z + W_2^l h_{p \\to c} + W_3^l w_c), \\qquad
+    a = \\mathrm{ReLU}(W_1^l z + W_2^l h_{p \\to c} + W_3^l w_c + E^l_t(t_c)), \\qquad
     f_c = U^l a + V^l w_c
 
-(the root has ``h = 0``). For generation the node latents have a learned conditional prior
-(a sequential VAE's):
+(the root has ``h = 0``). The node latents have a learned conditional prior:
 
-.. math:: p(w_c \\mid z, h_{p \\to c}, w_p) = \\mathcal N(\\mu^p, \\mathrm{diag}\\, e^{\\lambda^p}),
-          \\quad [\\mu^p, \\lambda^p] = U^p \\mathrm{ReLU}(W_1^p z + W_2^p h_{p \\to c} + W_3^p w_p)
+.. math:: p(w_c \\mid z, h_{p \\to c}, t_c) = \\mathcal N(\\mu^p, \\mathrm{diag}\\, e^{\\lambda^p}),
+          \\quad [\\mu^p, \\lambda^p] = U^p \\mathrm{ReLU}(W_1^p z + W_2^p h_{p \\to c}
+          + E^p_t(t_c))
 
-(``w_p = 0``, ``h = 0`` at the root; ``lambda^p`` soft-clamped to ``(-10, 10)``). The messages
-read neither ``z`` nor ``w``, so the encoder's and the decoder's level passes run stacked.
-Reconstruction feeds the encoder's ``w`` in pre-order; generation draws every new node's ``w``
-from the prior (ancestral sampling with the caller's noise, or its mean without). Why each part
-is there: ``docs/results.md`` (ablation).
+(``lambda^p`` soft-clamped to ``(-10, 10)``). Decoding "from z" puts every ``w_c`` at its prior
+mean; since no structural head reads ``w`` or ``z_G``, the tree and its node types are a
+function of ``z_T`` alone.
 """
 
 from __future__ import annotations
@@ -66,8 +69,7 @@ class DecoderOutput:
         topo_graph: ``[T]`` graph index of each decision; ``topo_node``: ``[T]`` deciding node.
         feat_pred: ``[N, d]`` predicted (normalised) features, batch node order.
         type_logits: ``[N, num_types]`` (zeros when ``num_types == 1``).
-        prior_mu, prior_logvar: ``[N, node_latent_dim]`` the node latents' conditional prior
-            (``None`` without node latents).
+        prior_mu, prior_logvar: ``[N, node_latent_dim]`` the node latents' conditional prior.
     """
 
     topo_logits: Tensor
@@ -81,22 +83,26 @@ class DecoderOutput:
 
 
 class TopoHead(nn.Module):
-    """Expansion logit of a decision from the deciding node's latent, its depth and its number
-    of children so far (module docstring)."""
+    """Expansion logit of a decision from ``z``, the deciding node's received messages, its
+    type, depth and number of children so far (module docstring)."""
 
-    def __init__(self, hidden_dim: int, node_latent_dim: int, max_depth_embed: int,
-                 max_children_embed: int) -> None:
+    def __init__(self, hidden_dim: int, tree_latent_dim: int, num_types: int,
+                 max_depth_embed: int, max_children_embed: int) -> None:
         super().__init__()
-        self.W4 = nn.Linear(node_latent_dim, hidden_dim)
-        self.u = nn.Linear(hidden_dim, 1)
+        self.W_z = nn.Linear(tree_latent_dim, hidden_dim)
+        self.W_m = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        self.type_emb = nn.Embedding(num_types, hidden_dim)
         self.depth_emb = nn.Embedding(max_depth_embed + 1, hidden_dim)
         self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
         self.count_vec = nn.Parameter(torch.zeros(hidden_dim))
+        self.u = nn.Linear(hidden_dim, 1)
 
-    def forward(self, w: Tensor, depth: Tensor, count: Tensor) -> Tensor:
-        """Logits ``[M]`` of ``M`` decisions: deciding nodes' latents ``w`` ``[M, dw]``, depths
-        and child counts so far ``[M]``."""
-        a = self.W4(w)
+    def forward(self, zt: Tensor, m: Tensor, node_type: Tensor, depth: Tensor,
+                count: Tensor) -> Tensor:
+        """Logits ``[M]`` of ``M`` decisions: ``zt = W_z z_T`` of each decision's robot
+        ``[M, H]``, received messages ``m`` ``[M, H]``, the deciding nodes' types, depths and
+        child counts so far ``[M]``."""
+        a = zt + self.W_m(m) + self.type_emb(node_type)
         a = a + self.depth_emb(depth.clamp_max(self.depth_emb.num_embeddings - 1))
         a = a + self.count_emb(count.clamp_max(self.count_emb.num_embeddings - 1))
         a = a + count[:, None].to(a.dtype) * self.count_vec
@@ -108,7 +114,8 @@ def decision_index(sched: TreeSchedule) -> tuple[Tensor, Tensor, Tensor, Tensor,
 
     Returns ``(node, count, target, which, graph)``: deciding node, its number of children so
     far, label (1 expand / 0 backtrack), row of the decision's inward message sum in
-    ``cat([sdown, total])`` (level order, :func:`~robovae.model.tree.level_messages`) and graph.
+    ``cat([sdown, total])`` (level order, :func:`~robovae.model.messages.level_messages`) and
+    graph.
     """
     if "decisions" in sched.cache:
         return sched.cache["decisions"]
@@ -141,6 +148,8 @@ class TreeDecoder(nn.Module):
         hidden_dim: message / hidden width ``H``.
         latent_dim: width of ``z``.
         node_latent_dim: width of the node latents ``w`` (at least 1).
+        tree_latent_dim: width of the tree latent ``z_T``, the first columns of ``z``
+            (``1 <= tree_latent_dim <= latent_dim``; ``None``: all of ``z``).
         type_mask: optional ``[num_types, d]`` bool (``FeatureSet.type_mask()``): decoded nodes
             get zeros outside their type's columns, as real inputs have. Default: every column
             belongs to every type.
@@ -148,49 +157,68 @@ class TreeDecoder(nn.Module):
         max_children_embed: child counts above this share the last count embedding.
 
     Raises:
-        ValueError: ``node_latent_dim < 1``.
+        ValueError: ``node_latent_dim < 1`` or ``tree_latent_dim`` outside ``[1, latent_dim]``.
     """
 
     def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
-                 node_latent_dim: int, type_mask: Tensor | None = None,
+                 node_latent_dim: int, tree_latent_dim: int | None = None,
+                 type_mask: Tensor | None = None,
                  max_depth_embed: int = 32, max_children_embed: int = 16) -> None:
         super().__init__()
         if node_latent_dim < 1:
             raise ValueError(f"the decoder needs node latents (node_latent_dim >= 1), "
                              f"got {node_latent_dim}")
+        tree_latent_dim = latent_dim if tree_latent_dim is None else tree_latent_dim
+        if not 1 <= tree_latent_dim <= latent_dim:
+            raise ValueError(f"tree_latent_dim must be in [1, latent_dim={latent_dim}], "
+                             f"got {tree_latent_dim}")
+        self.tree_latent_dim = tree_latent_dim
         self.feat_dim, self.num_types, self.hidden_dim = feat_dim, num_types, hidden_dim
         self.node_latent_dim = node_latent_dim
-        self.proj = nn.Linear(num_types, hidden_dim, bias=False)
+        self.proj = nn.Linear(num_types + tree_latent_dim, hidden_dim, bias=False)
         self.cell = TreeGRUCell(hidden_dim)
-        self.topo = TopoHead(hidden_dim, node_latent_dim, max_depth_embed, max_children_embed)
+        self.topo = TopoHead(hidden_dim, tree_latent_dim, num_types, max_depth_embed,
+                             max_children_embed)
+        # node type (eq. 11)
+        self.W_cz = nn.Linear(tree_latent_dim, hidden_dim)
+        self.W_ch = nn.Linear(hidden_dim, hidden_dim, bias=False)
+        self.depth_c = nn.Embedding(max_depth_embed + 1, hidden_dim)
+        self.U_c = nn.Linear(hidden_dim, num_types) if num_types > 1 else None
+        # features (eq. 10)
         self.W1_l = nn.Linear(latent_dim, hidden_dim)
         self.W2_l = nn.Linear(hidden_dim, hidden_dim, bias=False)
         self.W3_l = nn.Linear(node_latent_dim, hidden_dim, bias=False)
+        self.type_l = nn.Embedding(num_types, hidden_dim)
         self.U_l = nn.Linear(hidden_dim, feat_dim)
         self.V_l = nn.Linear(node_latent_dim, feat_dim, bias=False)
-        self.V_c = nn.Linear(node_latent_dim, num_types) if num_types > 1 else None
+        # the node latents' conditional prior
         self.W1_p = nn.Linear(latent_dim, hidden_dim)
         self.W2_p = nn.Linear(hidden_dim, hidden_dim, bias=False)
-        self.W3_p = nn.Linear(node_latent_dim, hidden_dim, bias=False)
+        self.type_p = nn.Embedding(num_types, hidden_dim)
         self.U_p = nn.Linear(hidden_dim, 2 * node_latent_dim)
         mask = torch.ones(num_types, feat_dim, dtype=torch.bool) if type_mask is None else type_mask
         self.register_buffer("type_mask", mask.bool().clone(), persistent=False)
 
-    def node_inputs(self, node_type: Tensor, dtype: torch.dtype) -> Tensor:
-        """What the decoder reads of a node: its one-hot type ``[N, num_types]``."""
-        return F.one_hot(node_type, self.num_types).to(dtype)
+    # --- heads ---------------------------------------------------------------------------
 
-    def node_heads(self, zl: Tensor, h: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:
-        """``(features, type logits)`` of new nodes (module docstring) from ``zl = W_1^l z``,
-        their parent's message ``h`` and their latents ``w``."""
-        a = torch.relu(zl + self.W2_l(h) + self.W3_l(w))
-        types = a.new_zeros(a.shape[0], 1) if self.V_c is None else self.V_c(w)
-        return self.U_l(a) + self.V_l(w), types
+    def type_logits(self, zc: Tensor, h: Tensor, depth: Tensor) -> Tensor:
+        """Type logits ``[M, num_types]`` of new nodes from ``zc = W^c_z z_T``, their parent's
+        message ``h`` and their depth (zeros with a single type)."""
+        if self.U_c is None:
+            return h.new_zeros(h.shape[0], 1)
+        d = depth.clamp_max(self.depth_c.num_embeddings - 1)
+        return self.U_c(torch.relu(zc + self.W_ch(h) + self.depth_c(d)))
 
-    def node_prior(self, zp: Tensor, h: Tensor, w_parent: Tensor) -> tuple[Tensor, Tensor]:
+    def features(self, zl: Tensor, h: Tensor, w: Tensor, node_type: Tensor) -> Tensor:
+        """Features ``[M, d]`` of new nodes (eq. 10, module docstring) from ``zl = W_1^l z``,
+        the parent's message ``h``, the node latents ``w`` and the nodes' types."""
+        a = torch.relu(zl + self.W2_l(h) + self.W3_l(w) + self.type_l(node_type))
+        return self.U_l(a) + self.V_l(w)
+
+    def node_prior(self, zp: Tensor, h: Tensor, node_type: Tensor) -> tuple[Tensor, Tensor]:
         """``(mu^p, logvar^p)`` of the node latents' prior (module docstring) from
-        ``zp = W_1^p z``, the parent's message ``h`` and the parent's latent."""
-        a = torch.relu(zp + self.W2_p(h) + self.W3_p(w_parent))
+        ``zp = W_1^p z``, the parent's message ``h`` and the nodes' types."""
+        a = torch.relu(zp + self.W2_p(h) + self.type_p(node_type))
         mu, logvar = self.U_p(a).chunk(2, -1)
         return mu, soft_clamp(logvar)
 
@@ -209,23 +237,31 @@ class TreeDecoder(nn.Module):
         """
         sched = tree_schedule(batch) if sched is None else sched
         if messages is None:
-            px = self.project_levels(batch.node_type, sched, z.dtype)
+            px = self.project_levels(batch.node_type, z, sched)
             messages = tuple(t[0] for t in level_messages([self.cell], px[None], sched, 0))
-        down, _, _ = messages
-        node, count, target, _, graph = decision_index(sched)
-        logits = self.topo(w.index_select(0, node), sched.depth.index_select(0, node), count)
+        down, total, sdown = messages
+        node, count, target, which, graph = decision_index(sched)
+        m = torch.cat([sdown, total]).index_select(0, which)
+        types, zt = batch.node_type, self.tree_part(z)
+        logits = self.topo(self.topo.W_z(zt).index_select(0, graph), m,
+                           types.index_select(0, node), sched.depth.index_select(0, node), count)
         h = down.index_select(0, sched.inv)
-        feat, types = self.node_heads(self.W1_l(z).index_select(0, sched.graph), h, w)
-        w_par = torch.where((sched.parent >= 0)[:, None],
-                            w.index_select(0, sched.parent.clamp_min(0)), 0.0)
-        pmu, plogvar = self.node_prior(self.W1_p(z).index_select(0, sched.graph), h, w_par)
-        return DecoderOutput(logits, target, graph, node, feat, types, pmu, plogvar)
+        g = sched.graph
+        type_logits = self.type_logits(self.W_cz(zt).index_select(0, g), h, sched.depth)
+        feat = self.features(self.W1_l(z).index_select(0, g), h, w, types)
+        pmu, plogvar = self.node_prior(self.W1_p(z).index_select(0, g), h, types)
+        return DecoderOutput(logits, target, graph, node, feat, type_logits, pmu, plogvar)
 
-    def project_levels(self, node_type: Tensor, sched: TreeSchedule,
-                       dtype: torch.dtype) -> Tensor:
-        """``cell.project(x^p)`` of the nodes' one-hot types, rows in level order, ``[N, 3H]``."""
-        x = self.node_inputs(node_type.index_select(0, sched.order), dtype)
-        return self.cell.project(x, self.proj.weight)
+    def tree_part(self, z: Tensor) -> Tensor:
+        """``z_T``: the first ``tree_latent_dim`` columns of ``z`` ``[B, latent_dim]``."""
+        return z[:, :self.tree_latent_dim]
+
+    def project_levels(self, node_type: Tensor, z: Tensor, sched: TreeSchedule) -> Tensor:
+        """``cell.project(x^p)`` of the nodes' inputs ``[e_i, z_T]``, rows in level order,
+        ``[N, 3H]``."""
+        order = sched.order
+        return self._px(node_type.index_select(0, order),
+                        z.index_select(0, sched.graph.index_select(0, order)))
 
     forward = teacher_forcing
 
@@ -243,11 +279,11 @@ class TreeDecoder(nn.Module):
         backtracks or it reaches ``max_nodes``. Each tree takes at most ``2 * max_nodes - 1``
         steps, so decoding always terminates. Node types are ``argmax`` of the type logits.
 
-        The ``t``-th node created for latent ``b`` (pre-order) takes
-        ``node_latents[b][t]`` when given (reconstruction: the encoder's node means), else a
-        draw from its conditional prior, ``mu^p + sigma^p * node_noise[b, t]`` (ancestral
-        sampling; ``node_noise`` is ``[B, >= max_nodes, node_latent_dim]``, already scaled by
-        the sampling temperature), or the prior mean ``mu^p`` without ``node_noise``.
+        The tree and the types depend on ``z_T`` only. The ``t``-th node created for latent ``b``
+        (pre-order) takes ``node_latents[b][t]`` when given (reconstruction: the encoder's node
+        means), else a draw from its conditional prior, ``mu^p + sigma^p * node_noise[b, t]``
+        (``node_noise`` is ``[B, >= max_nodes, node_latent_dim]``, already scaled by the sampling
+        temperature), or the prior mean ``mu^p`` without ``node_noise``.
 
         Returns:
             per latent ``(parent, node_type, x)``: pre-order parent vector (root -1), types and
@@ -264,16 +300,13 @@ class TreeDecoder(nn.Module):
         if max_nodes < 1 or max_depth < 0:
             raise ValueError("max_nodes must be >= 1 and max_depth >= 0")
         b, dev, hid = z.shape[0], z.device, self.hidden_dim
-        buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, self.node_latent_dim,
-                          z.dtype, dev)
-        zl = self.W1_l(z)
+        buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, z.dtype, dev)
+        heads = _LatentHeads(self, z, node_latents, node_noise, max_nodes)
         lat = torch.arange(b, device=dev)
-        wsrc = _NodeLatents(self, z, node_latents, node_noise, max_nodes)
         h0 = z.new_zeros(b, hid)
-        w = wsrc.take(lat, torch.zeros_like(lat), h0, z.new_zeros(b, self.node_latent_dim))
-        feat, types = self._new_nodes(zl, h0, w)
+        types, feat = heads.new_nodes(lat, torch.zeros_like(lat), h0, torch.zeros_like(lat))
         cur = buf.add(lat, torch.full_like(lat, -1), torch.zeros_like(lat), types, feat,
-                      self._px(types, z.dtype), h0, w)
+                      self._px(types, z), h0)
         count = torch.ones_like(lat)
         active = count < max_nodes
         for _ in range(2 * max_nodes):
@@ -282,7 +315,7 @@ class TreeDecoder(nn.Module):
                 break
             i = cur[act]
             inward = buf.down[i] + buf.csum[i]
-            logit = self.topo(buf.w[i], buf.depth[i], buf.nchild[i])
+            logit = self.topo(heads.zt[act], inward, buf.type[i], buf.depth[i], buf.nchild[i])
             expand = (logit > 0) & (buf.depth[i] < max_depth)
             pxi = buf.px[i]
             s = torch.where(expand[:, None], inward, buf.csum[i])
@@ -292,10 +325,9 @@ class TreeDecoder(nn.Module):
             e, k = expand.nonzero().flatten(), (~expand).nonzero().flatten()
             if e.numel():  # expanders create a child and move into it
                 be, pe, he = act[e], i[e], h[e]
-                w = wsrc.take(be, count[be], he, buf.w[pe])
-                feat, types = self._new_nodes(zl[be], he, w)
-                px = self._px(types, z.dtype)
-                cur[be] = buf.add(be, pe, buf.depth[pe] + 1, types, feat, px, he, w)
+                depth = buf.depth[pe] + 1
+                types, feat = heads.new_nodes(be, count[be], he, depth)
+                cur[be] = buf.add(be, pe, depth, types, feat, self._px(types, z[be]), he)
                 buf.nchild[pe] += 1
                 count[be] += 1
             if k.numel():  # backtrackers send their up message and move to their parent
@@ -310,18 +342,16 @@ class TreeDecoder(nn.Module):
             active &= count < max_nodes
         return buf.split(b)
 
-    def _px(self, node_type: Tensor, dtype: torch.dtype) -> Tensor:
-        return self.cell.project(self.proj(self.node_inputs(node_type, dtype)))
-
-    def _new_nodes(self, zl: Tensor, h: Tensor, w: Tensor) -> tuple[Tensor, Tensor]:
-        feat, logits = self.node_heads(zl, h, w)
-        types = logits.argmax(-1)
-        return torch.where(self.type_mask[types], feat, torch.zeros_like(feat)), types
+    def _px(self, node_type: Tensor, z: Tensor) -> Tensor:
+        """``cell.project(W^p [e_t, z_T])`` of nodes of types ``node_type`` in robots ``z``."""
+        x = torch.cat([F.one_hot(node_type, self.num_types).to(z.dtype), self.tree_part(z)], -1)
+        return self.cell.project(x, self.proj.weight)
 
 
-class _NodeLatents:
-    """Where greedy decoding takes each new node's latent ``w`` from: the given latents of the
-    latent's robot while they last (pre-order index ``t``), else the conditional prior."""
+class _LatentHeads:
+    """The per-robot parts of greedy decoding: ``z``'s projections for every head, and where
+    each new node's latent ``w`` comes from (the given latents of the robot while they last,
+    pre-order index ``t``, else the conditional prior)."""
 
     def __init__(self, dec: TreeDecoder, z: Tensor, given: Sequence[Tensor] | None,
                  noise: Tensor | None, max_nodes: int) -> None:
@@ -334,7 +364,9 @@ class _NodeLatents:
             raise ValueError(f"node_noise must be [{b}, >= {max_nodes}, {self.dim}], "
                              f"got {list(noise.shape)}")
         self.noise = None if noise is None else noise.to(z)
-        self.zp = dec.W1_p(z)
+        zt = dec.tree_part(z)
+        self.zt, self.zc = dec.topo.W_z(zt), dec.W_cz(zt)
+        self.zl, self.zp = dec.W1_l(z), dec.W1_p(z)
         given = list(given) if given is not None else []
         for k, g in enumerate(given):
             if g.dim() != 2 or g.shape[1] != self.dim:
@@ -346,25 +378,32 @@ class _NodeLatents:
         for k, g in enumerate(given):
             self.table[k, :g.shape[0]] = g.to(z)
 
-    def take(self, rows: Tensor, t: Tensor, h: Tensor, w_parent: Tensor) -> Tensor:
-        """Latents of the new nodes number ``t`` of latents ``rows`` (parent message ``h``)."""
+    def new_nodes(self, rows: Tensor, t: Tensor, h: Tensor,
+                  depth: Tensor) -> tuple[Tensor, Tensor]:
+        """``(types, features)`` of new nodes number ``t`` of robots ``rows`` (parent message
+        ``h``, depth ``depth``): the type from ``z`` first, then the latent, then the
+        features (zero outside the type's columns)."""
+        dec = self.dec
+        types = dec.type_logits(self.zc[rows], h, depth).argmax(-1)
         have = t < self.lens[rows]
         if bool(have.all()):  # reconstruction: every node's latent is given, no prior needed
-            return self.table[rows, t]
-        mu, logvar = self.dec.node_prior(self.zp[rows], h, w_parent)
-        w = mu
-        if self.noise is not None:
-            w = mu + torch.exp(0.5 * logvar) * self.noise[rows, t]
-        if bool(have.any()):
-            tt = t.clamp_max(max(self.table.shape[1] - 1, 0))
-            w = torch.where(have[:, None], self.table[rows, tt], w)
-        return w
+            w = self.table[rows, t]
+        else:
+            mu, logvar = dec.node_prior(self.zp[rows], h, types)
+            w = mu
+            if self.noise is not None:
+                w = mu + torch.exp(0.5 * logvar) * self.noise[rows, t]
+            if bool(have.any()):
+                tt = t.clamp_max(max(self.table.shape[1] - 1, 0))
+                w = torch.where(have[:, None], self.table[rows, tt], w)
+        feat = dec.features(self.zl[rows], h, w, types)
+        return types, torch.where(dec.type_mask[types], feat, torch.zeros_like(feat))
 
 
 class _NodeBuffer:
     """Growable flat storage of the nodes being decoded (all latents interleaved)."""
 
-    def __init__(self, cap: int, d: int, hid: int, dw: int, dtype: torch.dtype,
+    def __init__(self, cap: int, d: int, hid: int, dtype: torch.dtype,
                  dev: torch.device) -> None:
         self.n = 0
         long = {"dtype": torch.long, "device": dev}
@@ -372,15 +411,15 @@ class _NodeBuffer:
         self.owner, self.parent = torch.zeros(cap, **long), torch.zeros(cap, **long)
         self.depth, self.type = torch.zeros(cap, **long), torch.zeros(cap, **long)
         self.nchild = torch.zeros(cap, **long)
-        self.x, self.w = torch.zeros(cap, d, **flt), torch.zeros(cap, dw, **flt)
+        self.x = torch.zeros(cap, d, **flt)
         self.px, self.down = torch.zeros(cap, 3 * hid, **flt), torch.zeros(cap, hid, **flt)
         self.csum, self.cgated = torch.zeros(cap, hid, **flt), torch.zeros(cap, hid, **flt)
 
-    _FIELDS = ("owner", "parent", "depth", "type", "nchild", "x", "w", "px", "down", "csum",
+    _FIELDS = ("owner", "parent", "depth", "type", "nchild", "x", "px", "down", "csum",
                "cgated")
 
     def add(self, owner: Tensor, parent: Tensor, depth: Tensor, types: Tensor, x: Tensor,
-            px: Tensor, down: Tensor, w: Tensor) -> Tensor:
+            px: Tensor, down: Tensor) -> Tensor:
         """Append nodes (children's ``nchild``/``csum``/``cgated`` start at zero); their ids."""
         m = owner.numel()
         if self.n + m > self.owner.shape[0]:
@@ -393,7 +432,7 @@ class _NodeBuffer:
         ids = torch.arange(self.n, self.n + m, device=owner.device)
         self.owner[ids], self.parent[ids], self.depth[ids], self.type[ids] = (
             owner, parent, depth, types)
-        self.x[ids], self.px[ids], self.down[ids], self.w[ids] = x, px, down, w
+        self.x[ids], self.px[ids], self.down[ids] = x, px, down
         self.n += m
         return ids
 

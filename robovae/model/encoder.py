@@ -19,7 +19,9 @@ def reparametrize(mu: Tensor, logvar: Tensor) -> Tensor:
 class TreeEncoder(nn.Module):
     """Encode a batch of robot trees into ``q(z | G)`` and the node posteriors ``q(w_i | G)``.
 
-    - eq. 5: ``x_i^p = W^p x_i`` (``proj``);
+    - eq. 5: ``x_i^p = W^p x_i`` (``proj``), ``x_i`` the node's (normalised) features, or with
+      ``reads_types`` its one-hot type: such an encoder sees the tree and its node types only
+      (the robot's *tree latent*, :class:`~robovae.model.vae.RoboVAE`);
     - eq. 4: GRU messages ``m_ij`` along every tree edge in both directions (:class:`TreeGRUCell`):
       upward level by level from the deepest depth, then downward from the roots, where the
       message ``p -> c`` sums the message into ``p`` from its parent and the upward messages of
@@ -28,31 +30,24 @@ class TreeEncoder(nn.Module):
     - eq. 7: ``h_G = sum of h_i over the leaves`` (a one-node tree's root is its leaf);
     - ``mu = Linear(h_G)``, ``logvar = Linear(h_G)`` (``log sigma^2``, unclamped).
 
-    **Node latents**: every node also gets a posterior
-    ``q(w_i | G) = N(mu^w(g_i), diag exp(logvar^w(g_i)))`` (log-variance soft-clamped to
-    ``(-10, 10)``) from its readout ``h_i`` (eq. 6, for every node) and the two structural facts
-    its latent must carry exactly, its type ``t_i`` and its number of children ``K_i``:
-    ``g_i = h_i + E^t_{t_i} + E^K_{min(K_i, max_children_embed)} + K_i c^K`` (the linear term
-    lets counts beyond the embedded ones extrapolate).
+    **Node latents** (``node_latent_dim > 0``): every node also gets a posterior
+    ``q(w_i | G) = N(mu^w(h_i), diag exp(logvar^w(h_i)))`` (log-variance soft-clamped to
+    ``(-10, 10)``) from its readout ``h_i`` (eq. 6, for every node). The decoder reads these
+    latents for the features only (:mod:`robovae.model.decoder`).
 
     Args:
-        in_dim: feature width ``d``; ``batch.x`` must already be normalised.
+        in_dim: feature width ``d`` (``batch.x`` must already be normalised), or the number of
+            node types with ``reads_types``.
         hidden_dim: message / hidden width ``H``.
         latent_dim: width of ``z``.
-        node_latent_dim: width of the node latents ``w_i`` (at least 1).
-        num_types: number of node types (for the node latents' type embedding).
-        max_children_embed: child counts above this share the last count embedding.
-
-    Raises:
-        ValueError: ``node_latent_dim < 1``.
+        node_latent_dim: width of the node latents ``w_i`` (0: none).
+        reads_types: read each node's one-hot type instead of its features.
     """
 
-    def __init__(self, in_dim: int, hidden_dim: int, latent_dim: int, node_latent_dim: int,
-                 num_types: int = 2, max_children_embed: int = 16) -> None:
+    def __init__(self, in_dim: int, hidden_dim: int, latent_dim: int,
+                 node_latent_dim: int = 0, reads_types: bool = False) -> None:
         super().__init__()
-        if node_latent_dim < 1:
-            raise ValueError(f"the encoder needs node latents (node_latent_dim >= 1), "
-                             f"got {node_latent_dim}")
+        self.reads_types = reads_types
         self.proj = nn.Linear(in_dim, hidden_dim, bias=False)
         self.cell = TreeGRUCell(hidden_dim)
         self.W_e = nn.Linear(hidden_dim, hidden_dim)
@@ -60,23 +55,32 @@ class TreeEncoder(nn.Module):
         self.mu = nn.Linear(hidden_dim, latent_dim)
         self.logvar = nn.Linear(hidden_dim, latent_dim)
         self.node_latent_dim = node_latent_dim
-        self.type_emb = nn.Embedding(num_types, hidden_dim)
-        self.count_emb = nn.Embedding(max_children_embed + 1, hidden_dim)
-        self.count_vec = nn.Parameter(torch.zeros(hidden_dim))
-        self.node_mu = nn.Linear(hidden_dim, node_latent_dim)
-        self.node_logvar = nn.Linear(hidden_dim, node_latent_dim)
+        if node_latent_dim > 0:
+            self.node_mu = nn.Linear(hidden_dim, node_latent_dim)
+            self.node_logvar = nn.Linear(hidden_dim, node_latent_dim)
 
     def forward(self, batch: Data, sched: TreeSchedule | None = None) -> tuple[Tensor, Tensor]:
         """``(mu, logvar)``, ``[B, latent]`` each, for a ``Batch`` (or one ``Data``)."""
         sched = tree_schedule(batch) if sched is None else sched
         return self.readout(*self.messages(batch, sched), sched)
 
+    def inputs(self, batch: Data, sched: TreeSchedule) -> Tensor:
+        """What the encoder reads of every node, rows in level order: ``[N, in_dim]``."""
+        if self.reads_types:
+            return F.one_hot(batch.node_type.index_select(0, sched.order),
+                             self.proj.in_features).to(self.proj.weight.dtype)
+        return batch.x.index_select(0, sched.order)
+
+    def project(self, x: Tensor) -> Tensor:
+        """``cell.project(W^p x)`` of level-order inputs (the level passes' ``px``)."""
+        return self.cell.project(x, self.proj.weight)
+
     def messages(self, batch: Data, sched: TreeSchedule) -> tuple[Tensor, Tensor]:
-        """eq. 4–5 alone: ``(x, inward)`` in level order, the features ``[N, d]`` and the sum
-        of every message a node receives ``[N, H]`` (the inputs of :meth:`readout` and
-        :meth:`node_readout`)."""
-        x = batch.x.index_select(0, sched.order)
-        px = self.cell.project(x, self.proj.weight)
+        """eq. 4–5 alone: ``(x, inward)`` in level order, the inputs ``[N, in_dim]``
+        (:meth:`inputs`) and the sum of every message a node receives ``[N, H]`` (the inputs
+        of :meth:`readout` and :meth:`node_readout`)."""
+        x = self.inputs(batch, sched)
+        px = self.project(x)
         _, total, _ = level_messages([self.cell], px[None], sched, 1)
         return x, total[0]
 
@@ -92,16 +96,11 @@ class TreeEncoder(nn.Module):
         """eq. 6, ``h_i = ReLU(W^e x_i^p + U^e sum_k m_ki)``, for the rows given."""
         return torch.relu(self.W_e(self.proj(x)) + self.U_e(inward))
 
-    def node_readout(self, x: Tensor, inward: Tensor, sched: TreeSchedule,
-                     node_type: Tensor) -> tuple[Tensor, Tensor]:
+    def node_readout(self, x: Tensor, inward: Tensor,
+                     sched: TreeSchedule) -> tuple[Tensor, Tensor]:
         """``(mu^w, logvar^w)`` of every node's latent, ``[N, node_latent_dim]`` each, **node
-        order**, from the same level-order inputs as :meth:`readout` and the node types (node
-        order)."""
+        order**, from the same level-order inputs as :meth:`readout`."""
         g = self.node_states(x, inward).index_select(0, sched.inv)
-        k = sched.num_children
-        g = g + self.type_emb(node_type) \
-            + self.count_emb(k.clamp_max(self.count_emb.num_embeddings - 1)) \
-            + k[:, None].to(x.dtype) * self.count_vec
         mu, logvar = _heads(g, self.node_mu, self.node_logvar)
         return mu, soft_clamp(logvar)
 

@@ -8,7 +8,8 @@ is the mean squared error over the node's own columns (``batch.x_mask``).
 - ``topo``: binary cross-entropy with logits of the expand/backtrack decisions (eq. 9);
 - ``feat``: masked MSE of the features (eq. 10), normalised units;
 - ``type``: cross-entropy of the node types (eq. 11; identically 0 with a single type);
-- ``kl``: eq. 8, ``-1/(2B) sum_i sum_j (1 + logvar - mu^2 - exp(logvar))``;
+- ``kl``: eq. 8, ``-1/(2B) sum_i sum_j (1 + logvar - mu^2 - exp(logvar))``; ``kl_tree`` its
+  part over the tree latent ``z_T`` (the first ``tree_dim`` columns; reported, not added);
 - ``kl_nodes`` (node latents only): the KL of every node's posterior ``q(w_i | G)`` from its
   conditional prior ``p(w_i | z, h_{p->i}, w_p)`` (:mod:`robovae.model.decoder`), summed over the
   graph's nodes: ``1/2 sum_j (lambda^p - lambda^q + (e^{lambda^q} + (mu^q - mu^p)^2)
@@ -37,7 +38,7 @@ from robovae.model.tree import graph_index
 def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
              beta: float = 1.0, node_mu: Tensor | None = None,
              node_logvar: Tensor | None = None, beta_nodes: float | None = None,
-             ) -> dict[str, Tensor]:
+             tree_dim: int = 0) -> dict[str, Tensor]:
     """Loss terms of a batch (module docstring for the reduction).
 
     Args:
@@ -45,12 +46,13 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
             then carries their prior).
         node_logvar: ``[N, node_latent_dim]`` node posterior log-variances.
         beta_nodes: weight of ``kl_nodes`` (default: ``beta``).
+        tree_dim: width of the tree latent ``z_T`` (the first columns of ``mu``) for ``kl_tree``.
 
     Returns:
-        ``loss``, ``topo``, ``feat``, ``type``, ``kl``, ``kl_nodes`` (scalars, batch means of
-        per-graph sums; ``kl_nodes`` is 0 without node latents), ``per_graph_loss`` ``[B]``,
-        ``per_graph_kl``, ``per_graph_kl_nodes`` and ``per_graph_nelbo`` ``[B]`` (detached, nats;
-        module docstring), and
+        ``loss``, ``topo``, ``feat``, ``type``, ``kl``, ``kl_tree``, ``kl_nodes`` (scalars, batch
+        means of per-graph sums; ``kl_nodes`` is 0 without node latents), ``per_graph_loss``
+        ``[B]``, ``per_graph_kl``, ``per_graph_kl_tree``, ``per_graph_kl_nodes`` and
+        ``per_graph_nelbo`` ``[B]`` (detached, nats; module docstring), and
         detached metrics ``topo_acc`` (share of correct decisions) and ``type_acc`` (share of
         correct node types).
     """
@@ -65,7 +67,8 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
     sq = (out.feat_pred - batch.x) ** 2 * mask
     feat_n = sq.sum(1) / mask.sum(1).clamp_min(1.0)
     type_n = F.cross_entropy(out.type_logits, batch.node_type, reduction="none")
-    kl_g = -0.5 * (1 + logvar - mu**2 - logvar.exp()).sum(1)
+    kl_dims = -0.5 * (1 + logvar - mu**2 - logvar.exp())
+    kl_g = kl_dims.sum(1)
     topo_g = per_graph(topo_t, out.topo_graph)
     feat_g, type_g = per_graph(feat_n, graph), per_graph(type_n, graph)
     per_graph_loss = topo_g + feat_g + type_g + beta * kl_g
@@ -93,9 +96,11 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
         "feat": feat_g.mean(),
         "type": type_g.mean(),
         "kl": kl_g.mean(),
+        "kl_tree": kl_dims[:, :tree_dim].sum(1).mean().detach(),
         "kl_nodes": kl_nodes_g.mean(),
         "per_graph_loss": per_graph_loss,
         "per_graph_kl": kl_g.detach(),
+        "per_graph_kl_tree": kl_dims[:, :tree_dim].sum(1).detach(),
         "per_graph_kl_nodes": kl_nodes_g.detach(),
         "per_graph_nelbo": nelbo_g,
         "topo_acc": topo_acc,

@@ -39,7 +39,7 @@ from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
 from robovae.model.messages import level_messages
 from robovae.model.prior import latent, node_noise
-from robovae.model.tree import tree_schedule
+from robovae.model.tree import TreeSchedule, tree_schedule
 
 
 def _draw(mu: Tensor, logvar: Tensor, sample: bool,
@@ -60,7 +60,12 @@ class RoboVAE(L.LightningModule):
     Args:
         feature_set: registry name of the node features (must match the data).
         hidden_dim: message / hidden size of encoder and decoder.
-        latent_dim: size of z.
+        latent_dim: size of z = [z_T, z_G].
+        tree_latent_dim: size of the tree latent z_T, the first columns of z: its encoder reads
+            the tree and the node types only, and the decoder's structural heads (topology and
+            node types) read nothing else (:mod:`robovae.model.decoder`); z_G (the rest) is
+            read from the features and shapes the features only. Must be below ``latent_dim``
+            (``None``: half of it).
         beta: final weight of the KL term (eq. 13).
         beta_start: β at epoch 0 of the linear warm-up.
         beta_warmup_epochs: epochs of the linear warm-up from ``beta_start`` to ``beta``.
@@ -74,8 +79,8 @@ class RoboVAE(L.LightningModule):
             widened by this fraction of its width (``None``: no clipping). Keeps prior samples
             on the support of the data: a log-scaled mass far outside it would be e^20 kg.
         node_latent_dim: width of the per-node latents ``w`` (at least 1): the encoder gives
-            every node a posterior, the decoder reads it in the node's heads and learns a
-            conditional prior for generation (:mod:`robovae.model.decoder`).
+            every node a posterior, the decoder reads it in the node's feature head only and
+            learns a conditional prior for generation (:mod:`robovae.model.decoder`).
         beta_nodes: weight of the node latents' KL (``None``: follow β and its warm-up).
     """
 
@@ -96,16 +101,24 @@ class RoboVAE(L.LightningModule):
         support_margin: float | None = 0.1,
         node_latent_dim: int = 32,
         beta_nodes: float | None = None,
+        tree_latent_dim: int | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
         fs = get_feature_set(feature_set)
         self.feature_set = fs
         self.normalizer = Normalizer(fs)
-        self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim, node_latent_dim,
-                                   fs.num_node_types)
+        if tree_latent_dim is None:
+            tree_latent_dim = self.hparams.tree_latent_dim = max(1, latent_dim // 2)
+        if not 1 <= tree_latent_dim < latent_dim:
+            raise ValueError(f"robovae: tree_latent_dim must be in [1, latent_dim), got "
+                             f"{tree_latent_dim} with latent_dim {latent_dim}")
+        self.tree_encoder = TreeEncoder(fs.num_node_types, hidden_dim, tree_latent_dim,
+                                        reads_types=True)
+        self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim - tree_latent_dim,
+                                   node_latent_dim)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
-                                   node_latent_dim, type_mask=fs.type_mask())
+                                   node_latent_dim, tree_latent_dim, type_mask=fs.type_mask())
         self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------
@@ -179,21 +192,26 @@ class RoboVAE(L.LightningModule):
         Training batches come augmented by the datamodule (:mod:`robovae.data.augment`)."""
         nb = self.normalized(batch)
         sched = tree_schedule(nb)
-        # the decoder's teacher-forced messages read only the node types: the encoder's and
-        # the decoder's level passes run as one stacked pass (the same as two separate ones)
-        enc, dec = self.encoder, self.decoder
-        x = nb.x.index_select(0, sched.order)  # level order
-        px = torch.stack([enc.cell.project(x, enc.proj.weight),
-                          dec.project_levels(nb.node_type, sched, x.dtype)])
-        down, total, sdown = level_messages([enc.cell, dec.cell], px, sched, num_encoder=1)
-        mu, logvar = enc.readout(x, total[0], sched)
+        mu, logvar, w_mu, w_logvar = self.posteriors(nb, sched)
         z = _draw(mu, logvar, sample, generator)
-        w_mu, w_logvar = enc.node_readout(x, total[0], sched, nb.node_type)
         w = _draw(w_mu, w_logvar, sample, generator)
-        out = dec.teacher_forcing(z, nb, w, sched, messages=(down[1], total[1], sdown[1]))
+        out = self.decoder.teacher_forcing(z, nb, w, sched)
         epoch = self.current_epoch
         return vae_loss(out, nb, mu, logvar, self.beta_at(epoch), w_mu, w_logvar,
-                        self.beta_nodes_at(epoch))
+                        self.beta_nodes_at(epoch), tree_dim=self.hparams.tree_latent_dim)
+
+    def posteriors(self, nb: Batch, sched: TreeSchedule) -> tuple[Tensor, Tensor, Tensor,
+                                                                     Tensor]:
+        """``(mu, logvar, w_mu, w_logvar)`` of a normalised batch: ``q(z | G)`` ``[B, latent]``
+        with ``z = [z_T, z_G]`` (tree encoder, feature encoder) and the node posteriors
+        ``[N, node_latent_dim]`` (node order). The two encoders' level passes run stacked."""
+        encs = (self.tree_encoder, self.encoder)
+        xs = [e.inputs(nb, sched) for e in encs]
+        px = torch.stack([e.project(x) for e, x in zip(encs, xs)])
+        _, total, _ = level_messages([e.cell for e in encs], px, sched, num_encoder=2)
+        (mt, lt), (mg, lg) = (e.readout(x, t, sched) for e, x, t in zip(encs, xs, total))
+        w_mu, w_logvar = self.encoder.node_readout(xs[1], total[1], sched)
+        return torch.cat([mt, mg], 1), torch.cat([lt, lg], 1), w_mu, w_logvar
 
     def _step(self, batch: Batch, stage: str, batch_idx: int = 0) -> Tensor:
         gen = None
@@ -203,7 +221,7 @@ class RoboVAE(L.LightningModule):
         terms = self(batch, sample=stage == "train", generator=gen)
         bs = batch.num_graphs
         # sync_dist: under DDP the epoch value is the mean over all ranks' robots
-        for k in ("loss", "topo", "feat", "type", "kl", "kl_nodes"):
+        for k in ("loss", "topo", "feat", "type", "kl", "kl_tree", "kl_nodes"):
             self.log(f"{stage}/{k}", terms[k], batch_size=bs, prog_bar=k == "loss",
                      on_epoch=True, on_step=False, sync_dist=True)
         if stage == "train":
@@ -255,26 +273,25 @@ class RoboVAE(L.LightningModule):
 
     @torch.no_grad()
     def encode(self, batch: Batch | Data) -> tuple[Tensor, Tensor]:
-        """``(mu, logvar)`` of each robot of a (physical-unit) batch."""
-        if not isinstance(batch, Batch):
-            batch = Batch.from_data_list([batch])
-        return self.encoder(self.normalized(batch.to(self.device)))
+        """``(mu, logvar)`` ``[B, latent_dim]`` of each robot of a (physical-unit) batch."""
+        mu, logvar, _, _ = self._encode_all(batch)
+        return mu, logvar
 
     @torch.no_grad()
     def encode_nodes(self, batch: Batch | Data) -> tuple[Tensor, list[Tensor]]:
         """``(mu, node_mu)``: each robot's latent mean ``[B, latent_dim]`` and its nodes' latent
         means in pre-order (a list of ``[n_i, node_latent_dim]``): what :meth:`reconstruct`
         decodes."""
+        mu, _, w_mu, counts = self._encode_all(batch)
+        return mu, list(torch.split(w_mu, counts))
+
+    def _encode_all(self, batch: Batch | Data) -> tuple[Tensor, Tensor, Tensor, list[int]]:
         if not isinstance(batch, Batch):
             batch = Batch.from_data_list([batch])
         nb = self.normalized(batch.to(self.device))
-        enc = self.encoder
         sched = tree_schedule(nb)
-        x, inward = enc.messages(nb, sched)
-        mu, _ = enc.readout(x, inward, sched)
-        counts = torch.bincount(sched.graph, minlength=sched.num_graphs).tolist()
-        w_mu, _ = enc.node_readout(x, inward, sched, nb.node_type)
-        return mu, list(torch.split(w_mu, counts))
+        mu, logvar, w_mu, _ = self.posteriors(nb, sched)
+        return mu, logvar, w_mu, torch.bincount(sched.graph, minlength=sched.num_graphs).tolist()
 
     def check_latents(self, z: Tensor) -> Tensor:
         """``z`` as a ``[B, latent_dim]`` tensor of the model's dtype and device.
@@ -377,7 +394,8 @@ class RoboVAE(L.LightningModule):
 
     @torch.no_grad()
     def latent_costs(self, batch: Batch | Data) -> dict[str, Tensor]:
-        """Per robot, in nats: ``kl_z`` = KL(q(z | G) || N(0, I)), ``kl_nodes`` = the sum over its
+        """Per robot, in nats: ``kl_z`` = KL(q(z | G) || N(0, I)), ``kl_tree`` its part over the
+        tree latent ``z_T``, ``kl_nodes`` = the sum over its
         nodes of KL(q(w_i | G) || p(w_i | z, h, w_parent)), and ``nelbo_per_node`` = the negative
         ELBO (:func:`~robovae.model.loss.vae_loss`, teacher forcing at the posterior means)
         divided by the number of nodes; also ``nodes``. Tensors ``[B]``."""
@@ -385,7 +403,8 @@ class RoboVAE(L.LightningModule):
             batch = Batch.from_data_list([batch])
         terms = self(batch.to(self.device), sample=False)
         nodes = torch.bincount(batch.batch.to(self.device), minlength=batch.num_graphs)
-        return {"kl_z": terms["per_graph_kl"], "kl_nodes": terms["per_graph_kl_nodes"],
+        return {"kl_z": terms["per_graph_kl"], "kl_tree": terms["per_graph_kl_tree"],
+                "kl_nodes": terms["per_graph_kl_nodes"],
                 "nelbo_per_node": terms["per_graph_nelbo"] / nodes.to(terms["per_graph_nelbo"]),
                 "nodes": nodes}
 

@@ -73,7 +73,7 @@ def test_exclusive_sibling_prefix() -> None:
 @pytest.mark.parametrize("seed", [0, 1])
 def test_matches_reference(seed: int) -> None:
     torch.manual_seed(seed)
-    enc = TreeEncoder(62, 32, 8, 4, 3)
+    enc = TreeEncoder(62, 32, 8, 4)
     for t in varied_trees(8, seed=seed):
         mu, logvar = enc(t)
         mu_r, logvar_r = encode_reference(enc, t)
@@ -83,7 +83,7 @@ def test_matches_reference(seed: int) -> None:
 
 def test_batching_invariance() -> None:
     torch.manual_seed(0)
-    enc = TreeEncoder(62, 32, 8, 4, 3).eval()
+    enc = TreeEncoder(62, 32, 8, 4).eval()
     trees = varied_trees(64, seed=3)
     mu, logvar = enc(Batch.from_data_list(trees))
     assert mu.shape == (64, 8) == logvar.shape
@@ -95,7 +95,7 @@ def test_batching_invariance() -> None:
 
 def test_single_data_and_leaf_readout() -> None:
     torch.manual_seed(0)
-    enc = TreeEncoder(5, 16, 4, 4, 1)
+    enc = TreeEncoder(5, 16, 4, 4)
     t = random_tree(1, random.Random(0), fs="random5")
     mu, _ = enc(t)  # a plain Data (no batch vector) works
     xp = enc.proj(t.x)

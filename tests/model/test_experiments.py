@@ -39,6 +39,7 @@ def test_menagerie2_trains_scores_and_loads(tmp_path, menagerie_dir, cache_root)
                       tmp_path / "menagerie2" / "default" / "seed0",
                       [f"--data.root={cache_root}", f'--data.sources=["dir:{menagerie_dir}"]',
                        "--model.hidden_dim=16", "--model.latent_dim=4",
+                       "--model.tree_latent_dim=2",
                        "--trainer.check_val_every_n_epoch=3", "--metrics.every_n_epochs=3"],
                       epochs=3)
     result = ex.run_one(spec)

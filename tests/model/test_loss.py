@@ -40,7 +40,7 @@ def random_tree(n: int, rng: random.Random, pop: float = 0.5, fs: str = "full"):
 def model(fs: str = "full", hidden: int = 32, latent: int = 8, seed: int = 0):
     torch.manual_seed(seed)
     f = get_feature_set(fs)
-    return (TreeEncoder(f.dim, hidden, latent, DW, f.num_node_types),
+    return (TreeEncoder(f.dim, hidden, latent, DW),
             TreeDecoder(f.dim, f.num_node_types, hidden, latent, DW, type_mask=f.type_mask()))
 
 
@@ -50,7 +50,7 @@ def losses(enc, dec, batch, beta=1.0, sample=False):
     sched = tree_schedule(batch)
     x, inward = enc.messages(batch, sched)
     mu, logvar = enc.readout(x, inward, sched)
-    wm, wlv = enc.node_readout(x, inward, sched, batch.node_type)
+    wm, wlv = enc.node_readout(x, inward, sched)
     z, w = (reparametrize(mu, logvar), reparametrize(wm, wlv)) if sample else (mu, wm)
     return vae_loss(dec.teacher_forcing(z, batch, w, sched), batch, mu, logvar, beta, wm, wlv)
 
@@ -130,7 +130,7 @@ def test_overfit_single_tree() -> None:
         sched = tree_schedule(t)
         h = enc.messages(t, sched)
         mu, _ = enc.readout(*h, sched)
-        wm, _ = enc.node_readout(*h, sched, t.node_type)
+        wm, _ = enc.node_readout(*h, sched)
         parent, types, x = dec.decode(mu, max_nodes=64, max_depth=32, node_latents=[wm])[0]
     assert parent.tolist() == t.parent.tolist()
     assert types.tolist() == [0] * 15
@@ -138,16 +138,26 @@ def test_overfit_single_tree() -> None:
 
 
 def test_vae_forward_is_encoder_then_decoder() -> None:
-    """RoboVAE.forward (one stacked message pass of encoder and decoder) gives the loss of the
-    encoder and the decoder called one after the other."""
+    """RoboVAE.forward (the tree encoder's and the feature encoder's level passes stacked, then
+    the decoder) gives the loss of the two encoders and the decoder called one after the
+    other, with z = [z_T, z_G]."""
     rng = random.Random(3)
     trees = [random_tree(rng.randint(1, 30), rng, rng.random(), fs="paper34") for _ in range(6)]
     batch = Batch.from_data_list(trees)
     torch.manual_seed(0)
-    vae = RoboVAE(hidden_dim=16, latent_dim=4, node_latent_dim=3).eval()
+    vae = RoboVAE(hidden_dim=16, latent_dim=6, tree_latent_dim=2, node_latent_dim=3).eval()
     vae.normalizer.fit(batch.x, batch.node_type)
+    nb = vae.normalized(batch)
     with torch.no_grad():
         out = vae(batch, sample=False)
-        ref = losses(vae.encoder, vae.decoder, vae.normalized(batch), beta=vae.beta_at(0))
-    for k in ("loss", "topo", "feat", "type", "kl", "kl_nodes"):
+        sched = tree_schedule(nb)
+        mt, lt = vae.tree_encoder(nb, sched)
+        x, inward = vae.encoder.messages(nb, sched)
+        mg, lg = vae.encoder.readout(x, inward, sched)
+        wm, wlv = vae.encoder.node_readout(x, inward, sched)
+        mu, logvar = torch.cat([mt, mg], 1), torch.cat([lt, lg], 1)
+        ref = vae_loss(vae.decoder.teacher_forcing(mu, nb, wm, sched), nb, mu, logvar,
+                       vae.beta_at(0), wm, wlv, tree_dim=2)
+    for k in ("loss", "topo", "feat", "type", "kl", "kl_tree", "kl_nodes"):
         torch.testing.assert_close(out[k], ref[k], atol=1e-5, rtol=1e-5)
+    assert float(ref["kl_tree"]) < float(ref["kl"])

@@ -35,7 +35,7 @@ def test_overfit_go2(tmp_path, menagerie_dir, cache_root):
     L.seed_everything(0)
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root), train_names=["go2"],
                          test_names=["go2"], val_is_train=True, batch_size=1)
-    model = RoboVAE(beta=1e-4, lr=3e-3)
+    model = RoboVAE(hidden_dim=64, beta=1e-4, lr=3e-3)
     _trainer(tmp_path, 600, check_val_every_n_epoch=600).fit(model, dm)
     (res,) = score_split(model.eval(), dm.test_set)
     assert res.ra == 1.0 and res.exact
@@ -121,7 +121,8 @@ def _cli_args(tmp_path: Path, *extra: str) -> list[str]:
     return ["--config", str(REPO / "configs" / "zoo.yaml"),
             "--trainer.max_epochs=2", "--trainer.enable_progress_bar=false",
             "--trainer.limit_train_batches=2", f"--data.root={tmp_path / 'cache'}",
-            "--model.hidden_dim=32", "--model.latent_dim=8", "--model.max_nodes=64",
+            "--model.hidden_dim=32", "--model.latent_dim=8", "--model.tree_latent_dim=4",
+            "--model.max_nodes=64",
             "--metrics.every_n_epochs=1", "--trainer.check_val_every_n_epoch=1",
             f"--checkpoint.dirpath={tmp_path / 'ckpt'}", *extra]
 
@@ -201,6 +202,14 @@ def test_checkpoints_of_earlier_versions_load_or_are_refused(trained_nodes, tmp_
     with pytest.raises(RobovaeError, match="removed.*local_heads=False.*retrain") as e:
         load_model(old)
     assert "\n" not in str(e.value)
+    # the model before the tree latent: no tree encoder among its weights
+    data = torch.load(ckpt, weights_only=True)
+    data["state_dict"] = {k: v for k, v in data["state_dict"].items()
+                          if not k.startswith("tree_encoder.")}
+    torch.save(data, old)
+    with pytest.raises(RobovaeError, match=f"{old}: .*no tree latent.*retrain") as e:
+        load_model(old)
+    assert "\n" not in str(e.value)
 
 
 def test_from_z_reconstruction_and_latent_costs(trained_nodes):
@@ -220,5 +229,7 @@ def test_from_z_reconstruction_and_latent_costs(trained_nodes):
     total = costs["nelbo_per_node"] * costs["nodes"]
     assert bool((total > costs["kl_z"] + costs["kl_nodes"]).all())
     m = split_metrics_from_z(model, robots)
-    assert set(m) == {"RA_z", "RA_true_z", "exact_z", "FRE_z", "KL_z", "KL_nodes", "NELBO_node"}
+    assert set(m) == {"RA_z", "RA_true_z", "exact_z", "FRE_z", "KL_z", "KL_tree", "KL_nodes",
+                      "NELBO_node"}
+    assert bool((costs["kl_tree"] > 0).all() and (costs["kl_tree"] < costs["kl_z"]).all())
     assert 0 <= m["RA_z"] <= 1 and m["KL_z"] == pytest.approx(float(costs["kl_z"].mean()))
