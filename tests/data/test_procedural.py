@@ -25,7 +25,13 @@ from robovae.data.procedural import (
     procedural_spec,
     write_procedural,
 )
-from robovae.data.procedural.coverage import links_and_joints, shape_stats, tree_shape
+from robovae.data.procedural.coverage import (
+    links_and_joints,
+    ordered_tree,
+    plan_tree,
+    shape_stats,
+    tree_shape,
+)
 from robovae.data.procedural.robots import draw_class
 from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import standing_test
@@ -140,6 +146,13 @@ def test_real_joint_patterns() -> None:
         biped = procedural_plan(seed, "biped")
         assert biped.root.children[0].joints[0].type == "hinge"
         assert limbs(model_to_graph(procedural_spec(seed, "biped").compile())) == 2
+
+
+@pytest.mark.parametrize("kind", CLASSES)
+def test_plan_tree_is_the_ordered_tree_of_the_graph(kind: str) -> None:
+    for seed in range(6):
+        graph = model_to_graph(procedural_spec(seed, kind).compile(), "full")
+        assert plan_tree(procedural_plan(seed, kind)) == ordered_tree(links_and_joints(graph))
 
 
 def test_deterministic_per_seed_and_names() -> None:
