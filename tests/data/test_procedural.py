@@ -148,6 +148,21 @@ def test_real_joint_patterns() -> None:
         assert limbs(model_to_graph(procedural_spec(seed, "biped").compile())) == 2
 
 
+def test_side_branches_and_sensor_bodies_come_first_or_last() -> None:
+    """Cassie lists each rod before the chain's next body (``rods_first``); barkour_vb lists
+    its welded sensor bodies before the legs (``sensor_slot``); both orders occur."""
+    rods, slots = set(), set()
+    for seed in range(40):
+        pitch = procedural_plan(seed, "biped").root.children[0].children[0].children[0]
+        names = [c.name for c in pitch.children]
+        if "left_achilles" in names:
+            rods.add(names.index("left_achilles") < names.index("left_knee"))
+        names = [c.name for c in procedural_plan(seed, "quadruped").root.children]
+        if "sensor0" in names:
+            slots.add(names.index("sensor0") < names.index("FL_hip"))
+    assert rods == {True, False} and slots == {True, False}
+
+
 @pytest.mark.parametrize("kind", CLASSES)
 def test_plan_tree_is_the_ordered_tree_of_the_graph(kind: str) -> None:
     for seed in range(6):

@@ -109,15 +109,29 @@ def finger_hand(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec,
         chain(body, f"{prefix}f{k}_", add(tip, side, spread), links)
 
 
-def sensors(s: Sampler, body: Part, prefix: str, half: Vec) -> None:
-    """0-2 welded sensor bodies (IMU, camera: no joint, a small box) on the top and front of
-    ``body``, whose geometry spans ``half`` (half-sizes): ``sensors`` of the class sets the
-    count (barkour_vb, n1 carry such bodies)."""
-    places = [(0.0, 0.0, half[2]), (half[0], 0.0, 0.3 * half[2])]
-    for k in range(int(s.pick("sensors"))):
+def welded_boxes(s: Sampler, n: int, prefix: str, places: list[Vec]) -> list[Part]:
+    """``n`` welded sensor bodies (IMU, camera: no joint, a small box) at ``places``, not yet
+    attached to a parent."""
+    out = []
+    for k in range(n):
         box = s.u((0.01, 0.03))
-        part = body.add(Part(f"{prefix}sensor{k}", places[k]))
+        part = Part(f"{prefix}sensor{k}", places[k % len(places)])
         part.geoms.append(Geom("box", s.u((0.01, 0.1)), pos=(0.0, 0.0, 0.0), half=(box,) * 3))
+        out.append(part)
+    return out
+
+
+def sensors(s: Sampler, body: Part, prefix: str, half: Vec) -> None:
+    """0-2 welded sensor bodies on the top and front of ``body``, whose geometry spans ``half``
+    (half-sizes): ``sensors`` of the class sets the count, ``sensor_slot`` whether they come
+    before the other children of ``body`` (barkour_vb, the head bodies of Unitree's go2
+    URDF) or after them."""
+    n = int(s.pick("sensors"))
+    parts = welded_boxes(s, n, prefix, [(0.0, 0.0, half[2]), (half[0], 0.0, 0.3 * half[2])])
+    if n and s.pick("sensor_slot") == "first":
+        body.children[:0] = parts
+    else:
+        body.children += parts
 
 
 def wheel(body: Part, name: str, pos: Vec, radius: float, width: float, mass: float,
