@@ -447,3 +447,29 @@ def test_real_ordered_trees_are_drawn() -> None:
         if ordered_tree(mjcf_to_graph(path, "paper34")) not in drawn[kind]:
             missing.append(name)
     assert missing == ["fourier_n1", "pal_talos", "unitree_g1"]
+
+
+def test_arm_end_effectors() -> None:
+    """Arms end bare or in a gripper of each kind, after 0-2 welded flange bodies."""
+    kinds, flanges = set(), set()
+    for seed in range(60):
+        root = procedural_plan(seed, "arm").root
+        chain = [p for p, _ in root.walk() if re.fullmatch(r"link\d", p.name)]
+        end, n = chain[-1], 0
+        while any(c.name == f"linkflange{n}" for c in end.children):
+            end = next(c for c in end.children if c.name == f"linkflange{n}")
+            assert not end.joints
+            n += 1
+        flanges.add(n)
+        names = [c.name for c in end.children]
+        joints = [j.type for c in end.children for j in c.joints]
+        if not names:
+            kinds.add("bare")
+        elif names == ["linkjaw"]:
+            kinds.add("jaw")
+        elif names == ["linkfinger0", "linkfinger1"]:
+            kinds.add("slides" if joints == ["slide", "slide"] else "hinges")
+        else:
+            assert names[0] == "linkjaw0_outer0" and all(j == "hinge" for j in joints)
+            kinds.add("linkage")
+    assert kinds == {"bare", "slides", "hinges", "jaw", "linkage"} and flanges == {0, 1, 2}

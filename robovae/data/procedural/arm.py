@@ -3,7 +3,8 @@
 Hinge patterns (base yaw first): 4 ``z y y y``; 5 ``z y y y x``; 6 ``z y y y z x`` or
 ``z y y x y x``; 7 ``z y z y z y z``. The shoulder rises from the base, the upper arm leans
 ``a`` above horizontal, the forearm reaches out, short wrist links follow. With probability
-``flange`` a welded end-effector body ends the chain (franka's hand, n1's end-effector link);
+``flange`` 1-2 welded end-effector bodies end the chain (franka's link8 and hand, n1's
+end-effector link);
 with probability ``gripper`` a gripper follows (:func:`~.parts.sample_gripper`: two parallel
 jaws on slides or hinges, one moving jaw, or two linkage jaws).
 :func:`sample_arm` draws an arm once and :func:`build_arm` builds it, so that mobile
@@ -35,14 +36,14 @@ _PATTERNS = {4: ["zyyy"], 5: ["zyyyx"], 6: ["zyyyzx", "zyyxyx"], 7: ["zyzyzyz"]}
 @dataclass
 class ArmPlan:
     """An arm drawn once: hinge axes (``x`` along the heading, ``y`` across, ``z`` up), the
-    link vectors as ``(elevation, length)``, radius, link masses, the flange length (0: none)
-    and the hand (``None``: bare)."""
+    link vectors as ``(elevation, length)``, radius, link masses, the lengths of the welded
+    flange bodies (none: no flange) and the hand (``None``: bare)."""
 
     pattern: str
     links: list[tuple[float, float]]
     radius: float
     masses: list[float]
-    flange: float
+    flange: list[float]
     hand: Hand | None
 
 
@@ -65,9 +66,10 @@ def sample_arm(s: Sampler, scale: float = 1.0, mass: float | None = None,
     radius = s.u("radius", scale)
     weights = [1.0 / (1.0 + 0.6 * k) for k in range(n)]
     masses = [total * w / sum(weights) for w in weights]
-    length = s.u("flange_length", scale) if s.p("flange") else 0.0
+    bodies = int(s.pick("flange_bodies")) if s.p("flange") else 0
+    lengths = [s.u("flange_length", scale) / bodies for _ in range(bodies)]
     hand = sample_gripper(s, scale) if s.p("gripper") else None
-    return ArmPlan(pattern, links, radius, masses, length, hand)
+    return ArmPlan(pattern, links, radius, masses, lengths, hand)
 
 
 def build_arm(s: Sampler, plan: ArmPlan, parent: Part, prefix: str, anchor: Vec,
@@ -87,9 +89,9 @@ def build_arm(s: Sampler, plan: ArmPlan, parent: Part, prefix: str, anchor: Vec,
     last, tip = chain(parent, prefix, anchor, links)
     n_d = math.sqrt(sum(c * c for c in vec)) or 1.0
     d = (vec[0] / n_d, vec[1] / n_d, vec[2] / n_d)
-    if plan.flange > 0:
-        last, tip = flange(last, f"{prefix}flange", tip, d, plan.flange, 0.5 * plan.radius,
-                           0.5 * plan.masses[-1])
+    for k, length in enumerate(plan.flange):
+        last, tip = flange(last, f"{prefix}flange{k}", tip, d, length, 0.5 * plan.radius,
+                           0.5 * plan.masses[-1] / len(plan.flange))
     if plan.hand is not None:
         build_hand(s, last, prefix, tip, d, plan.hand)
 
