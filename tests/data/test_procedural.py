@@ -308,7 +308,9 @@ def test_deterministic_per_seed_and_names() -> None:
 
 def test_batches_are_seeded_and_independent_of_workers() -> None:
     src = parse_procedural("n=70,seed=3")
+    threads = torch.get_num_threads()
     serial = procedural_graphs(src, jobs=1)
+    assert torch.get_num_threads() == threads  # built single-threaded, then restored
     parallel = procedural_graphs(src, jobs=2)
     other = procedural_graphs(parse_procedural("n=70,seed=4"), jobs=1)
     assert [g.name for g in serial] == [g.name for g in parallel]

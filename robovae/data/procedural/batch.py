@@ -110,15 +110,23 @@ def _jobs(source: ProceduralSource) -> list[tuple[int, str]]:
 
 def _graph_batch(jobs: list[tuple[int, str]], feature_set: str) -> list[dict]:
     """Worker: robots → graph fields as numpy arrays (tensors would travel as shared-memory
-    file descriptors, which run out on large builds)."""
-    out = []
-    for seed, kind in jobs:
-        spec = procedural_spec(seed, kind)
-        data = model_to_graph(spec.compile(), feature_set, spec.modelname,
-                              f"procedural:{kind}:{seed}")
-        out.append({k: v.numpy() if isinstance(v, torch.Tensor) else v
-                    for k, v in data.to_dict().items()})
-    return out
+    file descriptors, which run out on large builds). Torch runs single-threaded meanwhile
+    (the thread count is restored after): on graphs of about 100 nodes and more its intra-op
+    thread pool wakes for each tiny tensor operation, which costs milliseconds per graph when
+    the cores are busy, as they are with one worker per core."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        out = []
+        for seed, kind in jobs:
+            spec = procedural_spec(seed, kind)
+            data = model_to_graph(spec.compile(), feature_set, spec.modelname,
+                                  f"procedural:{kind}:{seed}")
+            out.append({k: v.numpy() if isinstance(v, torch.Tensor) else v
+                        for k, v in data.to_dict().items()})
+        return out
+    finally:
+        torch.set_num_threads(threads)
 
 
 def _run(fn, jobs: list, args: tuple, workers: int, progress: bool, desc: str) -> list:
