@@ -26,6 +26,7 @@ from robovae.data.procedural import (
     procedural_spec,
     write_procedural,
 )
+from robovae.data.procedural.batch import generator_digest
 from robovae.data.procedural.blueprint import Part, RobotPlan, reroot
 from robovae.data.procedural.coverage import (
     MENAGERIE_CLASSES,
@@ -397,6 +398,10 @@ def test_dataset_caches_procedural_sources(tmp_path: Path) -> None:
     assert torch.equal(again[5].x, ds[5].x)
     other = RobotDataset(tmp_path, ["procedural:n=12,seed=3"], progress=False)
     assert other.processed_paths != ds.processed_paths
+    # the key holds a digest of the generator's code and ranges: a cache built by another
+    # version of the generator is not reused
+    assert parse_procedural("n=12,seed=2").key().endswith(f"_g{generator_digest()}")
+    assert len(generator_digest()) == 12
 
 
 def test_config_strength_and_actuators() -> None:
