@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import mujoco
@@ -25,7 +26,16 @@ from robovae.data.procedural import (
     procedural_spec,
     write_procedural,
 )
-from robovae.data.procedural.coverage import links_and_joints, shape_stats, tree_shape
+from robovae.data.procedural.batch import generator_digest
+from robovae.data.procedural.blueprint import Part, RobotPlan, reroot
+from robovae.data.procedural.coverage import (
+    MENAGERIE_CLASSES,
+    links_and_joints,
+    ordered_tree,
+    plan_tree,
+    shape_stats,
+    tree_shape,
+)
 from robovae.data.procedural.robots import draw_class
 from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import standing_test
@@ -117,6 +127,37 @@ def _under(model: mujoco.MjModel, b: int, t: int) -> bool:
     return b == t
 
 
+def hinges_below(model: mujoco.MjModel, name: str) -> int:
+    """Hinges of the subtree of body ``name``."""
+    t = model.body(name).id
+    return int(sum((model.jnt_type[model.jnt_bodyid == b] == HINGE).sum()
+                   for b in range(t, model.nbody) if _under(model, b, t)))
+
+
+def world_geoms(part: Part, origin=(0.0, 0.0, 0.0)) -> dict:
+    """``{(part name, k): world points of geom k}`` of a plan's subtree."""
+    out = {}
+    for p, o in part.walk():
+        o = (o[0] + origin[0], o[1] + origin[1], o[2] + origin[2])
+        for k, g in enumerate(p.geoms):
+            pts = [g.fromto[:3], g.fromto[3:]] if g.fromto is not None else [g.pos]
+            out[p.name, k] = [tuple(a + b for a, b in zip(o, q)) for q in pts]
+    return out
+
+
+def joint_anchors(part: Part) -> dict:
+    """``{sorted names of the two parts a joint's edge joins: (world anchor, joint types)}``:
+    the edge, not which side is the parent."""
+    out = {}
+    origin = {p.name: o for p, o in part.walk()}
+    for p in (q for q, _ in part.walk()):
+        for c in p.children:
+            if c.joints:
+                out[tuple(sorted((p.name, c.name)))] = (origin[c.name],
+                                                        [j.type for j in c.joints])
+    return out
+
+
 def test_real_joint_patterns() -> None:
     for seed in range(8):
         quad = procedural_spec(seed, "quadruped").compile()
@@ -129,10 +170,11 @@ def test_real_joint_patterns() -> None:
         assert sum(model_to_graph(procedural_spec(s, "quadruped").compile()).num_nodes == 26
                    for s in range(40)) >= 24  # mostly the plain 26-node tree
         human = procedural_spec(seed, "humanoid").compile()
-        legs = hinges_per_limb(human)[:2]
+        legs = [hinges_below(human, f"{side}_leg0") for side in ("left", "right")]
         assert legs[0] == legs[1] and 5 <= legs[0] <= 8  # 5-7 + a toe hinge
         arm = procedural_spec(seed, "arm").compile()
-        assert 4 <= int((arm.jnt_type == HINGE).sum()) <= 9 and arm.jnt_type[0] != FREE
+        chain_hinges = [b for b in range(arm.nbody) if re.fullmatch(r"link\d", arm.body(b).name)]
+        assert 4 <= len(chain_hinges) <= 7 and arm.jnt_type[0] != FREE
         assert int((arm.jnt_type == SLIDE).sum()) in (0, 2)
         mobile = procedural_spec(seed, "mobile_manipulator").compile()
         wheels = [n for n in (mobile.body(b).name for b in range(mobile.nbody)) if "wheel" in n]
@@ -140,6 +182,120 @@ def test_real_joint_patterns() -> None:
         biped = procedural_plan(seed, "biped")
         assert biped.root.children[0].joints[0].type == "hinge"
         assert limbs(model_to_graph(procedural_spec(seed, "biped").compile())) == 2
+
+
+def subtree(part: Part) -> str:
+    """The ordered tree below ``part`` (its joints on top)."""
+    return plan_tree(RobotPlan("x", "x", 0, part, False))
+
+
+def find(part: Part, name: str) -> Part | None:
+    return next((p for p, _ in part.walk() if p.name == name), None)
+
+
+def test_humanoid_layouts_follow_real_files() -> None:
+    """Pelvis root with the legs first (unitree) or last (talos); torso root with the waist
+    chain ending in the pelvis and legs (t1, dm_control); the head before the arms mostly."""
+    layouts, head_first = set(), []
+    for seed in range(60):
+        plan = procedural_plan(seed, "humanoid")
+        names = [c.name for c in plan.root.children]
+        if "left_arm0" not in [p.name for p, _ in plan.root.walk()]:
+            continue
+        if plan.root.name == "pelvis":
+            legs = names.index("left_leg0")
+            assert names[legs + 1] == "right_leg0"
+            others = [n for n in names if "_leg" not in n and "sensor" not in n]
+            first = names.index(others[0])
+            layouts.add("legs_first" if legs < first else "upper_first")
+        else:
+            assert plan.root.name == "torso"
+            pelvis = find(plan.root, "pelvis")
+            assert pelvis is not find(plan.root, "torso") and pelvis.children
+            assert [c.name for c in pelvis.children if "_leg" in c.name] == ["left_leg0",
+                                                                                "right_leg0"]
+            lower = next(k for k, c in enumerate(plan.root.children) if find(c, "pelvis"))
+            arms = names.index("left_arm0")
+            layouts.add("torso_root" if lower > arms else "torso_root_mid")
+        holder = next(p for p, _ in plan.root.walk() if "left_arm0" in
+                      [c.name for c in p.children])
+        kids = [c.name for c in holder.children]
+        if "neck0" in kids:
+            head_first.append(kids.index("neck0") < kids.index("left_arm0"))
+    assert layouts == {"legs_first", "upper_first", "torso_root", "torso_root_mid"}
+    assert sum(head_first) > len(head_first) / 2 > 0
+
+
+def test_reroot_keeps_the_robot_in_place() -> None:
+    """Hanging a humanoid from its torso moves no geom and no joint anchor, and each joint
+    stays on the edge between the same two bodies."""
+    seed = next(s for s in range(100) if procedural_plan(s, "humanoid").root.name == "pelvis"
+                and find(procedural_plan(s, "humanoid").root, "waist1"))
+    plan = procedural_plan(seed, "humanoid")
+    torso = next(p for p, _ in plan.root.walk() if find(p, "left_arm0") in p.children)
+    at = {p.name: o for p, o in plan.root.walk()}[torso.name]
+    geoms, anchors = world_geoms(plan.root, tuple(-x for x in at)), joint_anchors(plan.root)
+    mass, n = plan.root.mass(), plan.num_joints
+    root = reroot(plan.root, torso)
+    assert root is torso and not root.joints and root.pos == (0.0, 0.0, 0.0)
+    after = world_geoms(root)
+    assert after.keys() == geoms.keys()
+    for k, pts in geoms.items():
+        assert np.allclose(after[k], pts, atol=1e-12), k
+    moved = joint_anchors(root)
+    assert moved.keys() == anchors.keys()
+    for k, (pos, types) in anchors.items():
+        assert np.allclose(moved[k][0], np.subtract(pos, at), atol=1e-12) and moved[k][1] == types
+    assert root.mass() == pytest.approx(mass)
+    assert sum(len(p.joints) for p, _ in root.walk()) == n
+    with pytest.raises(ValueError):
+        reroot(root, Part("elsewhere", (0.0, 0.0, 0.0)))
+
+
+def test_hands_and_arms_are_mirrored() -> None:
+    """Both hands of a humanoid and both arms of a mobile manipulator follow one plan; only
+    arms with a wrist (5+ hinges) carry a hand."""
+    kinds = set()
+    for seed in range(80):
+        root = procedural_plan(seed, "humanoid").root
+        left, right = find(root, "left_arm0"), find(root, "right_arm0")
+        if left is None:
+            continue
+        assert subtree(left) == subtree(right)
+        chain = [p for p, _ in left.walk() if re.fullmatch(r"left_arm\d", p.name)]
+        end = chain[-1]
+        if end.children and end.children[0].name == "left_end_effector":
+            end = end.children[0]
+        if len(chain) < 5:
+            assert not end.children
+        elif end.children:
+            kinds.add("fingers" if end.children[0].name.startswith("left_f") else "gripper")
+        mobile = procedural_plan(seed, "mobile_manipulator").root
+        if find(mobile, "arm_left_0"):
+            assert subtree(find(mobile, "arm_left_0")) == subtree(find(mobile, "arm_right_0"))
+    assert kinds == {"fingers", "gripper"}
+
+
+def test_side_branches_and_sensor_bodies_come_first_or_last() -> None:
+    """Cassie lists each rod before the chain's next body (``rods_first``); barkour_vb lists
+    its welded sensor bodies before the legs (``sensor_slot``); both orders occur."""
+    rods, slots = set(), set()
+    for seed in range(40):
+        pitch = procedural_plan(seed, "biped").root.children[0].children[0].children[0]
+        names = [c.name for c in pitch.children]
+        if "left_achilles" in names:
+            rods.add(names.index("left_achilles") < names.index("left_knee"))
+        names = [c.name for c in procedural_plan(seed, "quadruped").root.children]
+        if "sensor0" in names:
+            slots.add(names.index("sensor0") < names.index("FL_hip"))
+    assert rods == {True, False} and slots == {True, False}
+
+
+@pytest.mark.parametrize("kind", CLASSES)
+def test_plan_tree_is_the_ordered_tree_of_the_graph(kind: str) -> None:
+    for seed in range(6):
+        graph = model_to_graph(procedural_spec(seed, kind).compile(), "full")
+        assert plan_tree(procedural_plan(seed, kind)) == ordered_tree(links_and_joints(graph))
 
 
 def test_deterministic_per_seed_and_names() -> None:
@@ -153,7 +309,9 @@ def test_deterministic_per_seed_and_names() -> None:
 
 def test_batches_are_seeded_and_independent_of_workers() -> None:
     src = parse_procedural("n=70,seed=3")
+    threads = torch.get_num_threads()
     serial = procedural_graphs(src, jobs=1)
+    assert torch.get_num_threads() == threads  # built single-threaded, then restored
     parallel = procedural_graphs(src, jobs=2)
     other = procedural_graphs(parse_procedural("n=70,seed=4"), jobs=1)
     assert [g.name for g in serial] == [g.name for g in parallel]
@@ -240,6 +398,10 @@ def test_dataset_caches_procedural_sources(tmp_path: Path) -> None:
     assert torch.equal(again[5].x, ds[5].x)
     other = RobotDataset(tmp_path, ["procedural:n=12,seed=3"], progress=False)
     assert other.processed_paths != ds.processed_paths
+    # the key holds a digest of the generator's code and ranges: a cache built by another
+    # version of the generator is not reused
+    assert parse_procedural("n=12,seed=2").key().endswith(f"_g{generator_digest()}")
+    assert len(generator_digest()) == 12
 
 
 def test_config_strength_and_actuators() -> None:
@@ -275,3 +437,46 @@ def test_quadrupeds_have_the_real_quadruped_tree() -> None:
         links_and_joints(model_to_graph(procedural_spec(0, "hexapod").compile(), "full")))
     with pytest.raises(ValueError):
         shape_stats(model_to_graph(procedural_spec(0, "quadruped").compile(), "paper34"))
+
+
+@pytest.mark.skipif(not (MENAGERIE / "unitree_go2" / "go2.xml").is_file(),
+                    reason="../shared/menagerie not present")
+def test_real_ordered_trees_are_drawn() -> None:
+    """The generator draws the exact ordered trees of 14 of the 17 unseen robots among its
+    first robots of each class (g1, n1 and talos are possible but rarer: docs/data.md)."""
+    first = {"quadruped": 20, "humanoid": 1000, "biped": 200, "arm": 20,
+             "mobile_manipulator": 1000}
+    drawn = {kind: {plan_tree(procedural_plan(s, kind)) for s in range(n)}
+             for kind, n in first.items()}
+    missing = []
+    for name, kind in MENAGERIE_CLASSES.items():
+        path = next(p for p in (MENAGERIE / name).glob("*.xml") if "scene" not in p.name)
+        if ordered_tree(mjcf_to_graph(path, "paper34")) not in drawn[kind]:
+            missing.append(name)
+    assert missing == ["fourier_n1", "pal_talos", "unitree_g1"]
+
+
+def test_arm_end_effectors() -> None:
+    """Arms end bare or in a gripper of each kind, after 0-2 welded flange bodies."""
+    kinds, flanges = set(), set()
+    for seed in range(60):
+        root = procedural_plan(seed, "arm").root
+        chain = [p for p, _ in root.walk() if re.fullmatch(r"link\d", p.name)]
+        end, n = chain[-1], 0
+        while any(c.name == f"linkflange{n}" for c in end.children):
+            end = next(c for c in end.children if c.name == f"linkflange{n}")
+            assert not end.joints
+            n += 1
+        flanges.add(n)
+        names = [c.name for c in end.children]
+        joints = [j.type for c in end.children for j in c.joints]
+        if not names:
+            kinds.add("bare")
+        elif names == ["linkjaw"]:
+            kinds.add("jaw")
+        elif names == ["linkfinger0", "linkfinger1"]:
+            kinds.add("slides" if joints == ["slide", "slide"] else "hinges")
+        else:
+            assert names[0] == "linkjaw0_outer0" and all(j == "hinge" for j in joints)
+            kinds.add("linkage")
+    assert kinds == {"bare", "slides", "hinges", "jaw", "linkage"} and flanges == {0, 1, 2}

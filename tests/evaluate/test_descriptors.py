@@ -79,6 +79,11 @@ def test_robot_category() -> None:
     # from the structure alone (no name)
     assert robot_category("", mjcf_to_graph(ZOO["gym_ant"])) == "quadruped"
     # a procedural humanoid whose arms and neck hang on the pelvis (no waist): 4-5 limbs
-    seed = next(s for s in range(50) if procedural_plan(s, "humanoid").root.children[2:]
-                and not procedural_plan(s, "humanoid").root.children[2].name.startswith("waist"))
+    def arms_on_pelvis(seed: int) -> bool:
+        root = procedural_plan(seed, "humanoid").root
+        names = [c.name for c in root.children]
+        return root.name == "pelvis" and "left_arm0" in names and not any(
+            "sensor" in n for n in names)
+
+    seed = next(s for s in range(100) if arms_on_pelvis(s))
     assert robot_category("", proc_graph(seed, "humanoid")) == "humanoid"

@@ -13,12 +13,14 @@ writes numbers with (``tests/data/test_procedural.py`` checks it).
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 import torch
@@ -40,6 +42,17 @@ from robovae.errors import RobovaeError
 MAX_ROBOTS = 10_000_000
 
 
+@cache
+def generator_digest() -> str:
+    """A digest of the generator's code and ranges (the ``.py`` files and ``ranges.yaml`` of
+    this package): a batch is a function of its ``n``, ``seed`` and mix *and* of them."""
+    h = hashlib.sha1()
+    folder = Path(__file__).parent
+    for path in sorted([*folder.glob("*.py"), folder / "ranges.yaml"]):
+        h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()[:12]
+
+
 @dataclass(frozen=True)
 class ProceduralSource:
     """A parsed ``procedural:`` source: ``n`` robots from ``seed`` with class ``mix``."""
@@ -49,9 +62,10 @@ class ProceduralSource:
     mix: dict[str, float]
 
     def key(self) -> str:
-        """A string naming the batch (for cache keys and folder names)."""
+        """A string naming the batch for cache keys, with the :func:`generator_digest`, so a
+        dataset cache built by another version of the generator is not reused."""
         mix = "+".join(f"{c}{w:.4g}" for c, w in sorted(self.mix.items()))
-        return f"procedural_n{self.n}_s{self.seed}_{mix}"
+        return f"procedural_n{self.n}_s{self.seed}_{mix}_g{generator_digest()}"
 
 
 def _int(name: str, text: str, lo: int, hi: int) -> int:
@@ -110,15 +124,23 @@ def _jobs(source: ProceduralSource) -> list[tuple[int, str]]:
 
 def _graph_batch(jobs: list[tuple[int, str]], feature_set: str) -> list[dict]:
     """Worker: robots → graph fields as numpy arrays (tensors would travel as shared-memory
-    file descriptors, which run out on large builds)."""
-    out = []
-    for seed, kind in jobs:
-        spec = procedural_spec(seed, kind)
-        data = model_to_graph(spec.compile(), feature_set, spec.modelname,
-                              f"procedural:{kind}:{seed}")
-        out.append({k: v.numpy() if isinstance(v, torch.Tensor) else v
-                    for k, v in data.to_dict().items()})
-    return out
+    file descriptors, which run out on large builds). Torch runs single-threaded meanwhile
+    (the thread count is restored after): on graphs of about 100 nodes and more its intra-op
+    thread pool wakes for each tiny tensor operation, which costs milliseconds per graph when
+    the cores are busy, as they are with one worker per core."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        out = []
+        for seed, kind in jobs:
+            spec = procedural_spec(seed, kind)
+            data = model_to_graph(spec.compile(), feature_set, spec.modelname,
+                                  f"procedural:{kind}:{seed}")
+            out.append({k: v.numpy() if isinstance(v, torch.Tensor) else v
+                        for k, v in data.to_dict().items()})
+        return out
+    finally:
+        torch.set_num_threads(threads)
 
 
 def _run(fn, jobs: list, args: tuple, workers: int, progress: bool, desc: str) -> list:

@@ -6,7 +6,9 @@ optionally a shin spring (passive hinge with ``spring_stiffness``) and a tarsus 
 bringing the leg forward again, and the foot (y) with a flat capsule foot under the hip. Side
 branches (``rods``, in this order) hang off the chain as in Cassie: an achilles rod on a ball
 joint (hip pitch body), a knee spring (welded, knee body), a heel spring (passive hinge with
-stiffness), a foot crank (motor-less hinge) and a plantar rod on the crank.
+stiffness), a foot crank (motor-less hinge) and a plantar rod on the crank. With probability
+``rods_first`` each rod comes before the chain's next body among its parent's children, as in
+Agility's Cassie model, else after it.
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ def sample(s: Sampler) -> tuple[Part, bool]:
     ta_vec = (dx, 0.0, -math.sqrt(max(tarsus ** 2 - dx ** 2, 0.25 * tarsus ** 2)))
     load = 0.5 * M * G * 0.5 * (thigh + shin)
     stiff = s.u("spring_stiffness")
+    made: list[Part] = []
     for side, sy in (("left", 1.0), ("right", -1.0)):
         roll = pelvis.add(Part(f"{side}_hip_roll", (0.0, sy * pw, 0.0),
                                [s.hinge("x", "limit", gear=load)]))
@@ -76,7 +79,6 @@ def sample(s: Sampler) -> tuple[Part, bool]:
         foot = foot_parent.add(Part(f"{side}_foot", foot_pos,
                                     [s.hinge("y", "limit", gear=0.3 * load)]))
         foot.geoms.append(capsule((-0.4 * fl, 0.0, -0.02), (fl, 0.0, -0.02), 0.02, 0.01 * M))
-        made: list[Part] = []
         if n_rods >= 1:
             made.append(_rod(pitch, f"{side}_achilles",
                              [Joint("ball", (0.0, 0.0, 1.0), None, 0.1, 0.0)],
@@ -90,9 +92,14 @@ def sample(s: Sampler) -> tuple[Part, bool]:
         if n_rods >= 4:
             crank = _rod(foot_parent, f"{side}_foot_crank", [s.hinge("y", "limit")],
                          (0.05, 0.0, -0.03), 0.004 * M)
+            made.append(crank)
             if n_rods >= 5:
                 plantar = crank.add(Part(f"{side}_plantar_rod", (0.05, 0.0, -0.03),
                                          [s.hinge("y", "limit")]))
                 plantar.geoms.append(capsule((0.0, 0.0, 0.0), (0.1, 0.0, -0.1), 0.01,
                                              0.004 * M))
+    if made and s.p("rods_first"):  # each rod before the next body of the chain (cassie)
+        rods = {id(r) for r in made}
+        for part, _ in pelvis.walk():
+            part.children.sort(key=lambda c: id(c) not in rods)
     return pelvis, True

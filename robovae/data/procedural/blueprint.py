@@ -9,7 +9,9 @@ gear of its motor (0: passive).
 
 :class:`RobotPlan` is a whole robot: its root part, whether the root floats (free joint) or is
 welded to the world, and the height of the root so that the lowest point sits ``clearance``
-above ``z = 0`` (:func:`lowest_point`).
+above ``z = 0`` (:func:`lowest_point`). :func:`reroot` hangs a tree from another of its parts
+(a humanoid rooted at its torso, as dm_control's humanoid and Booster's T1 are, instead of its
+pelvis).
 """
 
 from __future__ import annotations
@@ -48,9 +50,10 @@ class Geom:
     half: Vec | None = None
 
 
-@dataclass
+@dataclass(eq=False)
 class Part:
-    """One body: ``pos`` in the parent frame (m), joints in order, geoms, children."""
+    """One body: ``pos`` in the parent frame (m), joints in order, geoms, children. Parts
+    compare by identity."""
 
     name: str
     pos: Vec
@@ -71,6 +74,28 @@ class Part:
             yield p, o
             for c in reversed(p.children):
                 stack.append((c, (o[0] + c.pos[0], o[1] + c.pos[1], o[2] + c.pos[2])))
+
+    def path_to(self, target: Part) -> list[Part] | None:
+        """The parts from this one down to ``target`` (both included), ``None`` when
+        ``target`` is not in the subtree."""
+        if self is target:
+            return [self]
+        for c in self.children:
+            tail = c.path_to(target)
+            if tail is not None:
+                return [self, *tail]
+        return None
+
+    def shift(self, d: Vec) -> None:
+        """Move this part's origin by ``-d`` without moving anything in the world: its geoms and
+        children are translated by ``d`` in its frame."""
+        for g in self.geoms:
+            if g.fromto is not None:
+                g.fromto = (*_add(g.fromto[:3], d), *_add(g.fromto[3:], d))
+            if g.pos is not None:
+                g.pos = _add(g.pos, d)
+        for c in self.children:
+            c.pos = _add(c.pos, d)
 
     def mass(self) -> float:
         """Mass of the subtree (kg)."""
@@ -113,6 +138,46 @@ class RobotPlan:
         if not self.actuators:
             return 0
         return sum(j.gear > 0 for p, _ in self.root.walk() for j in p.joints)
+
+
+def _add(a: tuple, b: Vec) -> Vec:
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def reroot(root: Part, target: Part) -> Part:
+    """Make ``target`` (a part below ``root``) the root of the same robot and return it.
+
+    Every part on the path from ``root`` to ``target`` is hung under its former child, and
+    each edge keeps its joints at the same place in the world: the joints of the edge
+    ``a -> b`` (on ``b``) move to ``a``, whose origin moves to ``b``'s former origin (the
+    joint anchor). Geometry, masses and the other children do not move; a flipped part is
+    appended after the children its new parent already had. ``root`` must have no joints.
+
+    Raises:
+        ValueError: ``target`` is not in the tree, or ``root`` has joints.
+    """
+    path = root.path_to(target)
+    if path is None or root.joints:
+        raise ValueError(f"cannot reroot at '{target.name}'")
+    origins: list[Vec] = [(0.0, 0.0, 0.0)]
+    for p in path[1:]:
+        origins.append(_add(origins[-1], p.pos))
+    k = len(path) - 1
+    joints = [path[i + 1].joints for i in range(k)]
+    new_origin = origins[1:] + [origins[k]]  # part i moves to its former child's origin
+    for i in range(k - 1, -1, -1):
+        a, b = path[i], path[i + 1]
+        a.children.remove(b)
+        o = origins[i]
+        a.shift((o[0] - new_origin[i][0], o[1] - new_origin[i][1], o[2] - new_origin[i][2]))
+        a.joints = joints[i]
+        b.children.append(a)
+    for i in range(k):
+        a, n = new_origin[i], new_origin[i + 1]
+        path[i].pos = (a[0] - n[0], a[1] - n[1], a[2] - n[2])
+    target.joints = []
+    target.pos = (0.0, 0.0, 0.0)
+    return target
 
 
 def _low(g: Geom, o: Vec) -> float:

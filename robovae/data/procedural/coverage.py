@@ -4,11 +4,13 @@ For a robot graph (``full`` feature set): nodes of the link/joint tree, links, j
 degrees of freedom (free 6, ball 3, hinge/slide 1), limbs (:func:`robovae.data.graph.limbs`)
 and the tree shape: an AHU canonical string of the rooted link/joint tree with node types,
 equal for two graphs exactly when their trees are isomorphic with matching types (children
-unordered).
+unordered). :func:`ordered_tree` is the tree with its children in file order, the way
+reconstruction accuracy matches a decoded tree to the truth (k-th child to k-th child);
+:func:`plan_tree` gives the same string from a procedural plan without building it.
 
 :func:`coverage_rows` samples ``n`` robots of each class and reports, for each real robot, the
 ranges of its class and whether each statistic lies in them, and whether some sampled robot has
-exactly its tree shape.
+exactly its tree, unordered and ordered.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from robovae.data.features import get_feature_set
 from robovae.data.graph import RobotData, children, limbs
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.data.procedural.batch import ProceduralSource, procedural_graphs
+from robovae.data.procedural.blueprint import Part, RobotPlan
 
 #: Class of each Menagerie robot of ``../shared/menagerie`` (the unseen test set).
 MENAGERIE_CLASSES = {
@@ -46,6 +49,31 @@ def tree_shape(data: RobotData) -> str:
     return code[0]
 
 
+def ordered_tree(data: RobotData) -> str:
+    """The tree with children in file order: ``L`` link, ``J`` joint, ``G`` geom, each
+    followed by its children in brackets, e.g. ``J(L(J(L)J(L)))``."""
+    kids = children(data.parent)
+    letters = ["LJG"[t] for t in data.node_type.tolist()]
+    code = [""] * len(letters)
+    for i in range(len(letters) - 1, -1, -1):
+        code[i] = letters[i] + (f"({''.join(code[c] for c in kids[i])})" if kids[i] else "")
+    return code[0]
+
+
+def plan_tree(plan: RobotPlan) -> str:
+    """:func:`ordered_tree` of the ``paper34`` graph of a procedural ``plan`` (the free joint
+    on top when the plan floats), computed from the plan alone."""
+
+    def edge(part: Part) -> str:
+        code = "L" + (f"({''.join(edge(c) for c in part.children)})" if part.children else "")
+        for _ in part.joints:
+            code = f"J({code})"
+        return code
+
+    code = edge(plan.root)
+    return f"J({code})" if plan.floating else code
+
+
 def shape_stats(data: RobotData) -> dict:
     """Nodes and links without geoms, joints, DoF (free 6, ball 3, hinge and slide 1) and
     limbs of a graph of the ``full`` feature set.
@@ -66,15 +94,18 @@ def shape_stats(data: RobotData) -> dict:
 def coverage_rows(robots: Mapping[str, tuple[str, Path]], n: int = 2000, seed: int = 0,
                   jobs: int = 0) -> list[dict]:
     """One row per real robot ``{name: (class, file)}``: its statistics, the range
-    ``min-max`` of its class over ``n`` sampled robots, ``in range`` (every statistic inside)
-    and ``same tree`` (some sampled robot has exactly its tree shape)."""
+    ``min-max`` of its class over ``n`` sampled robots, ``in range`` (every statistic inside),
+    ``same tree`` (some sampled robot has exactly its tree shape, children unordered) and
+    ``same ordered tree`` (some sampled robot has its tree with children in the same order)."""
     stats: dict[str, dict] = {}
     for kind in sorted({k for k, _ in robots.values()}):
         graphs = procedural_graphs(ProceduralSource(n, seed, {kind: 1.0}), "full", jobs)
         rows = [shape_stats(g) for g in graphs]
+        trees = [links_and_joints(g) for g in graphs]
         stats[kind] = {"ranges": {k: (min(r[k] for r in rows), max(r[k] for r in rows))
                                   for k in rows[0]},
-                       "shapes": {tree_shape(links_and_joints(g)) for g in graphs}}
+                       "shapes": {tree_shape(t) for t in trees},
+                       "ordered": {ordered_tree(t) for t in trees}}
     out = []
     for name, (kind, path) in robots.items():
         g = mjcf_to_graph(path, "full")
@@ -86,7 +117,9 @@ def coverage_rows(robots: Mapping[str, tuple[str, Path]], n: int = 2000, seed: i
             row[k] = f"{v} ({lo}-{hi})"
         row["in range"] = "yes" if all(ranges[k][0] <= v <= ranges[k][1]
                                        for k, v in s.items()) else "no"
-        row["same tree"] = "yes" if tree_shape(links_and_joints(g)) in stats[kind]["shapes"] \
+        tree = links_and_joints(g)
+        row["same tree"] = "yes" if tree_shape(tree) in stats[kind]["shapes"] else "no"
+        row["same ordered tree"] = "yes" if ordered_tree(tree) in stats[kind]["ordered"] \
             else "no"
         out.append(row)
     return out

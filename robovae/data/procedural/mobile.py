@@ -3,13 +3,15 @@
 The base box floats (free joint) on 2 drive wheels plus 2 or 4 casters (a swivel hinge and a
 caster-wheel hinge each) or on 4 wheels; wheels may hang on suspension slides. A column rises
 from the base on a lift slide (else welded); on top sit a head on 0-2 hinges (pan z, tilt y)
-and one arm reaching forward or two reaching from the sides, each with a gripper
-(:func:`robovae.data.procedural.arm.add_arm`). Wheel and caster hinges are unlimited.
+and one arm reaching forward or two mirrored arms reaching from the sides (one
+:func:`~robovae.data.procedural.arm.sample_arm` plan, ``arm_hinges`` hinges), with grippers;
+the head comes before the arms with probability ``head_first`` (tiago, tiago_dual). Wheel and
+caster hinges are unlimited.
 """
 
 from __future__ import annotations
 
-from robovae.data.procedural.arm import add_arm
+from robovae.data.procedural.arm import build_arm, sample_arm
 from robovae.data.procedural.blueprint import Geom, Joint, Part
 from robovae.data.procedural.parts import AUTO, capsule, wheel
 from robovae.data.procedural.sampler import G, Sampler
@@ -64,6 +66,8 @@ def sample(s: Sampler) -> tuple[Part, bool]:
     joints = [s.slide((0.0, 0.0, 1.0), (0.0, s.u("lift_travel")), AUTO)] if s.p("lift") else []
     torso = base.add(Part("torso", (-0.3 * lx, 0.0, hz), joints))
     torso.geoms.append(capsule((0.0, 0.0, 0.0), (0.0, 0.0, column), 0.5 * wy, 0.3 * m_base))
+    n_arms, hinges = int(s.pick("arms")), int(s.pick("arm_hinges"))
+    head_first = s.p("head_first")
     neck: Part = torso
     top = (0.0, 0.0, column)
     for k, ax in enumerate("zy"[: int(s.pick("head_hinges"))]):
@@ -72,10 +76,13 @@ def sample(s: Sampler) -> tuple[Part, bool]:
         neck.geoms.append(capsule((0.0, 0.0, 0.0), top, 0.03, 0.5))
     neck.geoms.append(Geom("box", 1.5, pos=(0.05, 0.0, top[2] + 0.07), half=(0.08, 0.1, 0.07)))
     arm = s.section("arm")
-    if int(s.pick("arms")) == 1:
-        add_arm(arm, torso, "arm_", (0.5 * wy, 0.0, 0.8 * column), (1.0, 0.0, 0.0))
+    plan = sample_arm(arm, hinges=hinges)  # two arms mirror one plan (tiago_dual)
+    if n_arms == 1:
+        build_arm(arm, plan, torso, "arm_", (0.5 * wy, 0.0, 0.8 * column), (1.0, 0.0, 0.0))
     else:
         for side, sy in (("left", 1.0), ("right", -1.0)):
-            add_arm(arm, torso, f"arm_{side}_", (0.0, sy * 0.5 * wy, 0.8 * column),
-                    (0.0, sy, 0.0))
+            build_arm(arm, plan, torso, f"arm_{side}_", (0.0, sy * 0.5 * wy, 0.8 * column),
+                      (0.0, sy, 0.0))
+    if not head_first and neck is not torso:  # the head after the arms
+        torso.children.append(torso.children.pop(0))
     return base, True

@@ -1,4 +1,9 @@
-"""Parts every procedural class shares: joined limb chains, grippers, hands, wheels, motors.
+"""Parts every procedural class shares: joined limb chains, grippers, hands, welded bodies,
+wheels, motors.
+
+An end effector is drawn once per robot as a :class:`Hand` (:func:`sample_gripper`,
+:func:`sample_fingers`) and built on each arm by :func:`build_hand`, so that a robot's two
+hands are the same, as on real robots.
 
 Geometry is *joined*: a body's capsule runs from its own origin (its joint anchor) to the origin
 of its child (:func:`chain`), so every body touches its parent and child. Motor gears are sized
@@ -12,6 +17,7 @@ gear is then multiplied by the robot's strength (``common.strength`` in ``ranges
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 from robovae.data.procedural.blueprint import Geom, Joint, Part, Vec
 from robovae.data.procedural.sampler import G, Sampler
@@ -70,54 +76,133 @@ def perpendicular(d: Vec) -> Vec:
     return unit(side) if norm(side) > 1e-6 else (0.0, 1.0, 0.0)
 
 
-def gripper(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec, scale: float,
-            hinged: bool) -> None:
-    """A parallel-jaw gripper at ``tip`` of ``body``: two fingers along ``direction``, on slide
-    joints across it (travel ``finger_travel``) or, when ``hinged``, on hinges."""
+@dataclass
+class Hand:
+    """An end effector drawn once and built on every arm of a robot (real robots mirror their
+    hands): ``kind`` is ``slides`` or ``hinges`` (two parallel jaws), ``jaw`` (one moving jaw
+    against a fixed one), ``linkage`` (two jaws of linkage bars) or ``fingers``; ``length``
+    and ``travel`` size the jaws; ``fingers`` holds the phalanx lengths of each finger, the
+    thumb first; ``thumb_last`` lists it last instead; ``jaws`` holds ``(outer, inner, tips)``
+    of each linkage jaw."""
+
+    kind: str
+    length: float = 0.0
+    travel: float = 0.0
+    fingers: list[list[float]] = field(default_factory=list)
+    thumb_last: bool = False
+    jaws: list[tuple[int, int, int]] = field(default_factory=list)
+
+
+def sample_gripper(s: Sampler, scale: float) -> Hand:
+    """A gripper from the ``arm`` section (``gripper_kind``, ``finger``, ``finger_travel``,
+    ``linkage_outer``/``inner``/``tips``) through ``s``."""
+    kind = s.pick("gripper_kind")
+    hand = Hand(kind, s.u("finger", scale), s.u("finger_travel", scale))
+    if kind == "linkage":
+        hand.jaws = [(int(s.pick("linkage_outer")), int(s.pick("linkage_inner")),
+                      int(s.pick("linkage_tips"))) for _ in range(2)]
+    return hand
+
+
+def sample_fingers(s: Sampler, scale: float) -> Hand:
+    """A fingered hand from the ``humanoid`` section: ``fingers`` fingers of ``phalanges``
+    hinges each, the thumb ``thumb_extra`` more, listed ``thumb`` first or last."""
+    n, k = int(s.pick("fingers")), int(s.pick("phalanges"))
+    thumb = k + int(s.pick("thumb_extra"))
+    lengths = [[s.u("phalanx", scale) for _ in range(thumb if f == 0 else k)] for f in range(n)]
+    return Hand("fingers", fingers=lengths, thumb_last=s.pick("thumb") == "last")
+
+
+def _finger_link(s: Sampler, axis: Vec, d: Vec, ln: float, lim: tuple) -> Link:
+    return ([s.hinge(axis, lim, gear=AUTO)], (d[0] * ln, d[1] * ln, d[2] * ln),
+            max(0.004, 0.15 * ln), max(0.005, 15.0 * ln ** 2))
+
+
+def build_hand(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec, hand: Hand
+               ) -> None:
+    """Build ``hand`` at ``tip`` of ``body``, pointing along the unit vector ``direction``."""
     side = perpendicular(direction)
-    length = s.u("finger", scale)
-    travel = s.u("finger_travel", scale)
-    r = max(0.004, 0.15 * length)
     axis = cross(direction, side)
-    for k, sgn in enumerate((1.0, -1.0)):
-        base = add(tip, side, sgn * 0.5 * travel)
-        if hinged:
-            j = s.hinge(axis, ((-0.1, -0.05), (0.6, 1.0)), gear=AUTO)
-        else:
-            j = s.slide((sgn * side[0], sgn * side[1], sgn * side[2]), (0.0, travel), gear=AUTO)
-        f = body.add(Part(f"{prefix}finger{k}", base, [j]))
+    length, travel = hand.length, hand.travel
+    if hand.kind in ("slides", "hinges"):
+        for k, sgn in enumerate((1.0, -1.0)):
+            base = add(tip, side, sgn * 0.5 * travel)
+            if hand.kind == "hinges":
+                j = s.hinge(axis, ((-0.1, -0.05), (0.6, 1.0)), gear=AUTO)
+            else:
+                j = s.slide((sgn * side[0], sgn * side[1], sgn * side[2]), (0.0, travel),
+                            gear=AUTO)
+            f = body.add(Part(f"{prefix}finger{k}", base, [j]))
+            f.geoms.append(capsule((0.0, 0.0, 0.0), add((0.0, 0.0, 0.0), direction, length),
+                                   max(0.004, 0.15 * length), max(0.01, 20.0 * length ** 2)))
+    elif hand.kind == "jaw":  # a fixed jaw on the body, one jaw on a hinge
+        r = max(0.004, 0.15 * length)
+        fixed = add(tip, side, -0.5 * travel)
+        body.geoms.append(capsule(fixed, add(fixed, direction, length), r,
+                                  max(0.01, 20.0 * length ** 2)))
+        f = body.add(Part(f"{prefix}jaw", add(tip, side, 0.5 * travel),
+                          [s.hinge(axis, ((-0.1, -0.05), (0.6, 1.0)), gear=AUTO)]))
         f.geoms.append(capsule((0.0, 0.0, 0.0), add((0.0, 0.0, 0.0), direction, length), r,
                                max(0.01, 20.0 * length ** 2)))
+    elif hand.kind == "linkage":  # per jaw: an outer bar chain, an inner bar chain + tips
+        for k, (outer, inner, tips) in enumerate(hand.jaws):
+            sgn = 1.0 if k == 0 else -1.0
+            d = unit(add(direction, side, sgn * 0.3))
+            lim = ((-0.1, -0.05), (0.5, 0.9))
+            chain(body, f"{prefix}jaw{k}_outer", add(tip, side, sgn * 0.3 * travel),
+                  [_finger_link(s, axis, d, length / outer, lim) for _ in range(outer)])
+            last, end = chain(body, f"{prefix}jaw{k}_inner", add(tip, side, sgn * 0.1 * travel),
+                              [_finger_link(s, axis, d, 0.8 * length / inner, lim)
+                               for _ in range(inner)])
+            for t in range(tips):
+                spread = add(end, axis, (t - 0.5 * (tips - 1)) * 0.3 * travel)
+                chain(last, f"{prefix}jaw{k}_tip{t}_",
+                      spread, [_finger_link(s, axis, direction, 0.4 * length, lim)])
+    elif hand.kind == "fingers":
+        n = len(hand.fingers)
+        gap = 0.6 * sum(f[0] for f in hand.fingers) / n
+        order = list(range(1, n)) + [0] if hand.thumb_last else list(range(n))
+        for k in order:  # k = 0 is the thumb, turned to the side
+            spread = (k - 0.5 * (n - 1)) * gap
+            d = direction if k else unit(add(direction, axis, 0.8))
+            chain(body, f"{prefix}f{k}_", add(tip, side, spread),
+                  [_finger_link(s, axis, d, ln, ((-0.2, -0.05), (0.8, 1.6)))
+                   for ln in hand.fingers[k]])
 
 
-def finger_hand(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec,
-                scale: float) -> None:
-    """A hand of ``fingers`` fingers with ``phalanges`` hinges each, spread across
-    ``direction`` at ``tip`` (the first finger is a thumb turned to the side)."""
-    side = perpendicular(direction)
-    axis = cross(direction, side)
-    n = s.i("fingers")
+def flange(body: Part, name: str, tip: Vec, direction: Vec, length: float, radius: float,
+           mass: float) -> tuple[Part, Vec]:
+    """A welded end-effector body at ``tip`` of ``body`` (franka's hand, n1's end-effector
+    link): a short capsule along ``direction``. Returns it and its end (its frame)."""
+    end = (direction[0] * length, direction[1] * length, direction[2] * length)
+    part = body.add(Part(name, tip))
+    part.geoms.append(capsule((0.0, 0.0, 0.0), end, radius, mass))
+    return part, end
+
+
+def welded_boxes(s: Sampler, n: int, prefix: str, places: list[Vec]) -> list[Part]:
+    """``n`` welded sensor bodies (IMU, camera: no joint, a small box) at ``places``, not yet
+    attached to a parent."""
+    out = []
     for k in range(n):
-        spread = (k - 0.5 * (n - 1)) * 0.018 * scale
-        d = direction if k else unit(add(direction, axis, 0.8))
-        links: list[Link] = []
-        for _ in range(s.i("phalanges")):
-            ln = s.u("phalanx", scale)
-            links.append(([s.hinge(axis, ((-0.2, -0.05), (0.8, 1.6)), gear=AUTO)],
-                          (d[0] * ln, d[1] * ln, d[2] * ln), max(0.004, 0.2 * ln),
-                          max(0.005, 15.0 * ln ** 2)))
-        chain(body, f"{prefix}f{k}_", add(tip, side, spread), links)
+        box = s.u((0.01, 0.03))
+        part = Part(f"{prefix}sensor{k}", places[k % len(places)])
+        part.geoms.append(Geom("box", s.u((0.01, 0.1)), pos=(0.0, 0.0, 0.0), half=(box,) * 3))
+        out.append(part)
+    return out
 
 
 def sensors(s: Sampler, body: Part, prefix: str, half: Vec) -> None:
-    """0-2 welded sensor bodies (IMU, camera: no joint, a small box) on the top and front of
-    ``body``, whose geometry spans ``half`` (half-sizes): ``sensors`` of the class sets the
-    count (barkour_vb, n1 carry such bodies)."""
-    places = [(0.0, 0.0, half[2]), (half[0], 0.0, 0.3 * half[2])]
-    for k in range(int(s.pick("sensors"))):
-        box = s.u((0.01, 0.03))
-        part = body.add(Part(f"{prefix}sensor{k}", places[k]))
-        part.geoms.append(Geom("box", s.u((0.01, 0.1)), pos=(0.0, 0.0, 0.0), half=(box,) * 3))
+    """0-2 welded sensor bodies on the top and front of ``body``, whose geometry spans ``half``
+    (half-sizes): ``sensors`` of the class sets the count, ``sensor_slot`` whether they come
+    before the other children of ``body`` (barkour_vb, the head bodies of Unitree's go2
+    URDF) or after them."""
+    n = int(s.pick("sensors"))
+    parts = welded_boxes(s, n, prefix, [(0.0, 0.0, half[2]), (half[0], 0.0, 0.3 * half[2])])
+    if n and s.pick("sensor_slot") == "first":
+        body.children[:0] = parts
+    else:
+        body.children += parts
 
 
 def wheel(body: Part, name: str, pos: Vec, radius: float, width: float, mass: float,

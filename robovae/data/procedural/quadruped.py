@@ -6,7 +6,7 @@ hinge (y) that brings the foot sphere back under the hip; the foot is at least 1
 thick as the calf, so it is the lowest point. Knees point back, front, inward
 (front back, rear front) or outward. The tree is the 26-node quadruped of real robots: free
 joint, torso, 4 × (3 hinges + 3 bodies), and with probability 0.2 one or two welded sensor
-bodies on the torso (barkour_vb).
+bodies on the torso, listed before the legs (barkour_vb) or after them (``sensor_slot``).
 """
 
 from __future__ import annotations
