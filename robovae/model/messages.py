@@ -177,7 +177,10 @@ class _LevelMessages(torch.autograd.Function):
                     xy[..., :h] = m
                     torch.mul(xy_r, m, out=xy[..., h:])
         ctx.sched, ctx.ne = sched, num_encoder
-        ctx.fwd = (inp, ug, down, r_up, zc_up, zc_dn, r_dn)
+        # ``down`` is also an output, whose ``grad_fn`` is this ``ctx``: keeping the output
+        # object itself on ``ctx`` would make a reference cycle that only the cyclic garbage
+        # collector frees (megabytes per training step piled up between its rare full passes)
+        ctx.fwd = (inp, ug, down.detach(), r_up, zc_up, zc_dn, r_dn)
         ctx.save_for_backward(wz, wh, ur)
         return down, down + inp[:, :n, :h], inp[:, n:, :h]
 
