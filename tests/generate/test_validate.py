@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import mujoco
 import pytest
 
 from robovae.data.zoo import zoo_files
-from robovae.generate.validate import REASONS, validate_many, validate_robot
+from robovae.generate.validate import FLOOR, REASONS, check_robot, validate_many, validate_robot
 
 
 def _zoo(name: str) -> Path:
@@ -75,3 +76,18 @@ def test_validate_many_in_order_with_workers(tmp_path):
 def test_duration_sets_the_number_of_steps(tmp_path, duration):
     v = validate_robot(_write(tmp_path, "box", BOX.format(z=1)), duration=duration)
     assert v.steps == round(duration / 0.002)
+
+
+def test_kinetic_energy_is_the_maximum_over_the_steps(tmp_path):
+    """max_kinetic is the largest kinetic energy of the ``mj_step`` loop (one call of
+    mujoco.rollout gives the same trajectory); check_robot returns the model it simulated, with
+    a floor plane when the file has none."""
+    v, model = check_robot(_write(tmp_path, "box", BOX.format(z=1)))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    energy = []
+    for _ in range(v.steps):
+        mujoco.mj_step(model, data)
+        energy.append(float(data.energy[1]))
+    assert v.valid and v.max_kinetic == max(energy) > 0
+    assert model.geom(FLOOR).type == mujoco.mjtGeom.mjGEOM_PLANE
