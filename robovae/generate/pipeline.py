@@ -34,10 +34,11 @@ from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality.measure import robot_quality
 from robovae.evaluate.quality.report import summarize as quality_summary
+from robovae.evaluate.quality.stage import stage_compiled
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
-from robovae.generate.validate import validate_robot
+from robovae.generate.validate import check_robot
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import latent, node_noise  # noqa: F401  (re-exported)
@@ -258,10 +259,10 @@ def _build_one(item: tuple) -> dict:
                 "detail": f"writer error: {' '.join(str(e).split())}"}
     rec = {"rules": res.rules, "counts": res.counts}
     if validate:
-        v = validate_robot(res.robot_path)
+        v, model, spec, floor = check_robot(res.robot_path)
         rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
         if v.valid and quality:  # attached, symmetric, standing ... (robovae.evaluate.quality)
-            rec["quality"] = robot_quality(res.robot_path)
+            rec["quality"] = robot_quality(stage_compiled(model, spec, floor))
     return rec
 
 

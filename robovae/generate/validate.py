@@ -31,12 +31,14 @@ from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
 from robovae.data.loading import capture_mujoco_warnings, drop_missing_assets
+from robovae.evaluate.quality.stage import FLOOR
 
 _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_BADQACC: "bad qacc",
@@ -46,8 +48,6 @@ _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_CONTACTFULL: "contact buffer full",
     mujoco.mjtWarning.mjWARN_CNSTRFULL: "constraint buffer full",
 }
-#: Name of the floor plane added to a robot file without one.
-FLOOR = "robovae_floor"
 _KINETIC = "robovae_kinetic_energy"
 REASONS = ("valid", "compile", "degenerate", "self_penetration", "nan_inf", "mujoco_warning",
            "energy_blowup")
@@ -80,19 +80,18 @@ class Validation:
         return asdict(self)
 
 
-def _with_floor(spec: mujoco.MjSpec) -> mujoco.MjSpec:
-    world = spec.worldbody
-    if not any(g.type == mujoco.mjtGeom.mjGEOM_PLANE for g in world.geoms):
-        world.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
-    return spec
-
-
-def _compile(path: Path) -> mujoco.MjModel:
+def _compile(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjsGeom | None, mujoco.MjModel]:
+    """The robot's spec with a floor plane (:data:`FLOOR` added at ``z = 0`` when the world has
+    no plane; that geom, else None) and a kinetic-energy sensor (mujoco.rollout gives every
+    step's sensor data), and its compiled model."""
     spec = mujoco.MjSpec.from_file(str(path))
     drop_missing_assets(spec)
-    # the kinetic energy of every step comes out of mujoco.rollout as sensor data
     spec.add_sensor(name=_KINETIC, type=mujoco.mjtSensor.mjSENS_E_KINETIC)
-    return _with_floor(spec).compile()
+    floor = None
+    if not any(g.type == mujoco.mjtGeom.mjGEOM_PLANE for g in spec.worldbody.geoms):
+        floor = spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                        size=[0, 0, 0.05])
+    return spec, floor, spec.compile()
 
 
 def _step_by_step(path: Path, model: mujoco.MjModel, steps: int, scale: float,
@@ -126,6 +125,8 @@ def _rollout(path: Path, model: mujoco.MjModel, data: mujoco.MjData, steps: int,
     """Checks 3-5 in one ``mujoco.rollout`` call from ``data``'s state (``mj_forward`` at
     ``qpos0``): the valid result, or None when anything looks wrong (the caller then replays
     the steps one by one for the exact failure; the trajectory is the same)."""
+    if any(w.number for w in data.warning):  # already at qpos0
+        return None
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state0, spec)
@@ -140,31 +141,44 @@ def _rollout(path: Path, model: mujoco.MjModel, data: mujoco.MjData, steps: int,
     return Validation(str(path), True, "valid", "", steps, max_kin, scale)
 
 
+class Checked(NamedTuple):
+    """Outcome of :func:`check_robot`: the validation, and the robot as it was checked (None
+    when the file did not compile)."""
+
+    validation: Validation
+    model: mujoco.MjModel | None  # compiled from spec
+    spec: mujoco.MjSpec | None  # the file's, with a floor and a kinetic-energy sensor
+    floor: mujoco.MjsGeom | None  # the floor plane added at z = 0 (None: the file's own)
+
+
 def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float = 0.01,
-                energy_factor: float = 100.0) -> tuple[Validation, mujoco.MjModel | None]:
-    """:func:`validate_robot` and the model it simulated (None when the file did not compile):
-    the robot with a floor plane (the file's, or :data:`FLOOR` at ``z = 0`` when it has none)
-    and a kinetic-energy sensor, for measures that need the robot compiled again
-    (:func:`robovae.evaluate.quality.stage.stage_compiled`)."""
+                energy_factor: float = 100.0) -> Checked:
+    """:func:`validate_robot`, and the robot as it was checked, so that the quality measures
+    need not load it again (:func:`robovae.evaluate.quality.stage.stage_compiled`): its spec
+    with a floor plane (its own, or :data:`FLOOR` added at ``z = 0``) and a kinetic-energy
+    sensor, and the compiled model (flags as in the file)."""
     path = Path(path)
     fail = lambda reason, detail, **kw: Validation(str(path), False, reason,  # noqa: E731
                                                     " ".join(str(detail).split()), **kw)
     with capture_mujoco_warnings():
         try:
-            model = _compile(path)
+            spec, floor, model = _compile(path)
         except Exception as e:
-            return fail("compile", str(e).strip().splitlines()[0] if str(e).strip() else e), None
+            what = str(e).strip().splitlines()[0] if str(e).strip() else e
+            return Checked(fail("compile", what), None, None, None)
         if not (model.jnt_type != mujoco.mjtJoint.mjJNT_FREE).any():
-            return fail("degenerate", f"{model.nbody - 1} bodies and no joint besides a free "
-                        "base: nothing moves"), model
+            return Checked(fail("degenerate", f"{model.nbody - 1} bodies and no joint besides a "
+                                "free base: nothing moves"), model, spec, floor)
+        flags = model.opt.enableflags
         model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         robot_geom = model.geom_bodyid != 0
         for c in data.contact[: data.ncon]:
             if robot_geom[c.geom1] and robot_geom[c.geom2] and c.dist < -penetration_tol:
-                return fail("self_penetration", f"geoms {c.geom1} and {c.geom2} overlap by "
-                            f"{-c.dist:.3f} m at rest"), model
+                model.opt.enableflags = flags
+                return Checked(fail("self_penetration", f"geoms {c.geom1} and {c.geom2} overlap "
+                                    f"by {-c.dist:.3f} m at rest"), model, spec, floor)
         mass = float(model.body_subtreemass[0])
         height = float(np.ptp(data.geom_xpos[robot_geom, 2])) if robot_geom.any() else 0.0
         scale = mass * 9.81 * max(height, 1.0) + 1.0
@@ -172,7 +186,8 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
         v = _rollout(path, model, data, steps, scale, energy_factor)
         if v is None:
             v = _step_by_step(path, model, steps, scale, energy_factor)
-    return v, model
+        model.opt.enableflags = flags
+    return Checked(v, model, spec, floor)
 
 
 def validate_robot(path: str | Path, duration: float = 1.0, penetration_tol: float = 0.01,
@@ -181,7 +196,7 @@ def validate_robot(path: str | Path, duration: float = 1.0, penetration_tol: flo
     of the module docstring: ``duration`` in s, ``penetration_tol`` in m, ``energy_factor``
     times the energy scale. A robot that fails (also one whose file does not load) is not an
     error: the first failed check is the result's ``reason``."""
-    return check_robot(path, duration, penetration_tol, energy_factor)[0]
+    return check_robot(path, duration, penetration_tol, energy_factor).validation
 
 
 def _validate_kw(args: tuple[str, dict]) -> dict:

@@ -10,7 +10,9 @@ import pytest
 from robovae.data.procedural import ProceduralConfig, procedural_spec
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality import gait, gait_speed, stage, standing
-from robovae.evaluate.quality.stage import prepare, rest_pose
+from robovae.evaluate.quality.measure import measure
+from robovae.evaluate.quality.stage import prepare, rest_pose, stage_compiled
+from robovae.generate.validate import check_robot
 
 FAST = {"rollouts": 8, "seconds": 2.0}
 
@@ -110,3 +112,20 @@ def test_rest_pose_is_the_home_keyframe_within_joint_ranges(menagerie_dir) -> No
     spec.joints[1].limited = mujoco.mjtLimited.mjLIMITED_TRUE
     m = spec.compile()
     assert m.qpos0[7] == 0 and rest_pose(m)[7] == m.jnt_range[1, 0] > 0  # clipped into range
+
+
+def test_the_validators_model_gives_the_same_measures(tmp_path) -> None:
+    """robovae generate measures the model the validator compiled (floor at z = 0, moved to
+    the robot's lowest point): the same records as measuring the file from scratch."""
+    for k, spec in enumerate([procedural_spec(2, "quadruped"), procedural_spec(1, "humanoid")]):
+        spec.body(spec.bodies[1].name).pos[2] += 0.3  # floating above z = 0
+        path = tmp_path / f"robot{k}.xml"
+        path.write_text(spec.to_xml())
+        checked = check_robot(path)
+        assert checked.validation.valid and checked.floor is not None
+        st = stage_compiled(checked.model, checked.spec, checked.floor)
+        assert st.floor_z == stage(path).floor_z > 0.2
+        fresh, reused = measure(path), measure(st)
+        same = [k for k in fresh if not k.startswith("t_") and k not in ("name", "path")]
+        assert "stands" in same and "error" not in same
+        assert {k: fresh[k] for k in same} == {k: reused[k] for k in same}

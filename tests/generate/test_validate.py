@@ -8,7 +8,7 @@ import mujoco
 import pytest
 
 from robovae.data.zoo import zoo_files
-from robovae.generate.validate import FLOOR, REASONS, check_robot, validate_many, validate_robot
+from robovae.generate.validate import REASONS, check_robot, validate_many, validate_robot
 
 
 def _zoo(name: str) -> Path:
@@ -82,7 +82,8 @@ def test_kinetic_energy_is_the_maximum_over_the_steps(tmp_path):
     """max_kinetic is the largest kinetic energy of the ``mj_step`` loop (one call of
     mujoco.rollout gives the same trajectory); check_robot returns the model it simulated, with
     a floor plane when the file has none."""
-    v, model = check_robot(_write(tmp_path, "box", BOX.format(z=1)))
+    v, model, _, floor = check_robot(_write(tmp_path, "box", BOX.format(z=1)))
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     energy = []
@@ -90,4 +91,5 @@ def test_kinetic_energy_is_the_maximum_over_the_steps(tmp_path):
         mujoco.mj_step(model, data)
         energy.append(float(data.energy[1]))
     assert v.valid and v.max_kinetic == max(energy) > 0
-    assert model.geom(FLOOR).type == mujoco.mjtGeom.mjGEOM_PLANE
+    assert model.geom(floor.name).type == mujoco.mjtGeom.mjGEOM_PLANE
+    assert model.geom(floor.name).pos[2] == 0

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 
 from robovae.data.mjcf import robot_root
-from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, compiled, extent
+from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled, extent
 
 __all__ = ["AttachResult", "attachment"]
 
@@ -93,7 +93,7 @@ def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, li
 
 def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
                penetration: bool = True) -> AttachResult:
-    """Detached bodies and self-penetration of a robot file, spec or model at ``qpos0``
+    """Detached bodies and self-penetration of a robot file, spec, model or stage at ``qpos0``
     (module docstring; ``gap`` and ``tolerance`` are fractions of the extent; ``penetration``
     False skips the O(geoms²) overlap search).
 
@@ -103,8 +103,11 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
     model = compiled(robot)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    root, _ = robot_root(model)
-    size = extent(model, data, root)
+    if isinstance(robot, Stage):
+        root, size = robot.root, robot.extent
+    else:
+        root = robot_root(model)[0]
+        size = extent(model, data, root)
     geoms = _geoms_by_body(model, root)
     limit = gap * size
     out = AttachResult(0, 0, extent=size)

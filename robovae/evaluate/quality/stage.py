@@ -6,7 +6,12 @@ height and size.
 - a file or spec gets a floor (a plane at the robot's lowest point at ``qpos0``) when it has
   none (:func:`prepare`, which also returns the spec with the floor);
 - a model is used as it is: it must already have a floor (an upward world plane or height
-  field), else :class:`~robovae.errors.RobovaeError` is raised.
+  field), else :class:`~robovae.errors.RobovaeError` is raised;
+- a :class:`Stage` is used as it is (its model copied when an integrator is asked for).
+
+:func:`stage_compiled` gives what :func:`prepare` would from the spec and model the validator
+compiled (:func:`robovae.generate.validate.check_robot`: floor at ``z = 0``), without loading the
+file again.
 
 **Size.** ``Stage.extent`` is the diagonal (m) of the axis-aligned box around the robot's geoms
 (world-frame corners of their bounding boxes) and body origins at ``qpos0``. MuJoCo's
@@ -36,13 +41,13 @@ MOVING = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                 mujoco.mjtWarning.mjWARN_BADQVEL)
 
-Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel
-
-__all__ = ["REST_KEYFRAMES", "Robot", "Stage", "compiled", "extent", "prepare", "rest_pose",
-           "robot_points", "stage", "unstable"]
+__all__ = ["FLOOR", "REST_KEYFRAMES", "Robot", "Stage", "compiled", "extent", "prepare",
+           "rest_pose", "robot_points", "stage", "stage_compiled", "unstable"]
 
 #: Keyframe names taken as a robot's rest pose (Menagerie's robots define ``home``).
 REST_KEYFRAMES = ("home", "stand", "standing")
+#: Name of the floor plane added to a robot without one.
+FLOOR = "robovae_floor"
 
 
 @dataclass
@@ -54,6 +59,9 @@ class Stage:
     floor_z: float  # height of the floor under the robot, m
     extent: float  # diagonal of the robot's bounding box at qpos0, m
     free: bool  # the root body has a free joint
+
+
+Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel | Stage
 
 
 def robot_points(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> np.ndarray:
@@ -76,12 +84,14 @@ def robot_points(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> np.nd
 
 
 def compiled(robot: Robot) -> mujoco.MjModel:
-    """The compiled model of a robot file, spec or model (a model is returned as it is; no
-    floor is added).
+    """The compiled model of a robot file, spec, model or stage (a model, or a stage's model,
+    is returned as it is; no floor is added).
 
     Raises:
         RobotFileError: a file that does not load.
     """
+    if isinstance(robot, Stage):
+        return robot.model
     if isinstance(robot, mujoco.MjModel):
         return robot
     if isinstance(robot, mujoco.MjSpec):
@@ -124,8 +134,8 @@ def _stage_of(model: mujoco.MjModel, floor_z: float | None = None) -> Stage:
 
 def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = None
             ) -> tuple[mujoco.MjSpec, Stage]:
-    """The robot's spec (a copy) with a floor (added at its lowest point, named
-    ``robovae_floor``, when it has none) and its :class:`Stage`.
+    """The robot's spec (a copy) with a floor (added at its lowest point, named :data:`FLOOR`,
+    when it has none) and its :class:`Stage`.
 
     Raises:
         RobotFileError: the file does not load (one line).
@@ -141,7 +151,7 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
-        spec.worldbody.add_geom(name="robovae_floor", type=mujoco.mjtGeom.mjGEOM_PLANE,
+        spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
                                 size=[0, 0, 0.05], pos=[0.0, 0.0, lowest], condim=3)
     if integrator is not None:
         spec.option.integrator = integrator
@@ -151,13 +161,20 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
 
 
 def stage(robot: Robot, integrator: int | None = None) -> Stage:
-    """The :class:`Stage` of a robot file, spec or model (module docstring); a model is
-    copied, never changed.
+    """The :class:`Stage` of a robot file, spec, model or stage (module docstring); a model is
+    copied, never changed; a stage is returned as it is, or with a copy of its model using
+    ``integrator``.
 
     Raises:
         RobovaeError: a model without a floor.
         RobotFileError: a file that does not load.
     """
+    if isinstance(robot, Stage):
+        if integrator is None:
+            return robot
+        model = copy.copy(robot.model)
+        model.opt.integrator = integrator
+        return Stage(model, robot.root, robot.floor_z, robot.extent, robot.free)
     if isinstance(robot, mujoco.MjModel):
         if not _has_floor(robot):
             raise RobovaeError("robovae: model has no floor (pass the robot's file or MjSpec, "
@@ -167,6 +184,33 @@ def stage(robot: Robot, integrator: int | None = None) -> Stage:
             model.opt.integrator = integrator
         return _stage_of(model)
     return prepare(robot, integrator)[1]
+
+
+def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec,
+                   floor: mujoco.MjsGeom | None) -> Stage:
+    """The :class:`Stage` that :func:`prepare` gives for a robot, from its spec already compiled
+    into ``model`` with a floor (the validator's,
+    :func:`robovae.generate.validate.check_robot`), without loading it again.
+
+    ``floor``: the plane added to a robot that had no floor, at any height. It is moved to the
+    robot's lowest point at ``qpos0``, where :func:`prepare` adds it, and the spec compiled
+    once more (``spec`` is changed; ``model`` is not). ``None``: the floor is the robot's own
+    and ``model`` is staged as it is (a copy). When other world geoms sit beside the added
+    plane (a height field: :func:`prepare` would add no floor), the plane is deleted and the
+    spec prepared from scratch.
+    """
+    if floor is None:
+        return stage(model)
+    if np.count_nonzero(model.geom_bodyid == 0) != 1:
+        spec.delete(floor)
+        return prepare(spec)[1]
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
+    floor.pos = [0.0, 0.0, lowest]
+    floor.condim = 3  # as prepare adds it, whatever the file's default class says
+    with capture_mujoco_warnings():
+        return _stage_of(spec.compile())
 
 
 def rest_pose(model: mujoco.MjModel) -> np.ndarray:

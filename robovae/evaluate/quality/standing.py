@@ -162,7 +162,7 @@ def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
              limit_torques: bool = True, min_height: float = 0.5, max_tilt: float = 45.0,
              sample_dt: float = 0.02, max_steps: int = 10_000, chunk_seconds: float = 0.5,
              rest: float = 1e-3) -> StandResult:
-    """The standing test of a robot file, spec or model with a floor (module docstring).
+    """The standing test of a robot file, spec, model with a floor or stage (module docstring).
 
     ``max_steps`` caps the physics steps: a robot with a tiny time step is tested for less than
     ``seconds`` (``StandResult.seconds`` says how long). The simulation runs in rollouts of

@@ -88,7 +88,7 @@ def _subtree(kids: dict[int, list[int]], b: int) -> list[int]:
 
 
 def anatomy(robot: Robot, tolerance: float = 0.1) -> Anatomy:
-    """Counts, limbs and mirrored limb pairs of a robot file, spec or model (module
+    """Counts, limbs and mirrored limb pairs of a robot file, spec, model or stage (module
     docstring).
 
     Raises:
