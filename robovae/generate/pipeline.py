@@ -259,10 +259,10 @@ def _build_one(item: tuple) -> dict:
                 "detail": f"writer error: {' '.join(str(e).split())}"}
     rec = {"rules": res.rules, "counts": res.counts}
     if validate:
-        v, model, spec, floor = check_robot(res.robot_path)
+        v, model, spec, floor, data = check_robot(res.robot_path)
         rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
         if v.valid and quality:  # attached, symmetric, standing ... (robovae.evaluate.quality)
-            rec["quality"] = robot_quality(stage_compiled(model, spec, floor))
+            rec["quality"] = robot_quality(stage_compiled(model, spec, floor, data))
     return rec
 
 

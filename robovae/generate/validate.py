@@ -125,7 +125,7 @@ def _rollout(path: Path, model: mujoco.MjModel, data: mujoco.MjData, steps: int,
     """Checks 3-5 in one ``mujoco.rollout`` call from ``data``'s state (``mj_forward`` at
     ``qpos0``): the valid result, or None when anything looks wrong (the caller then replays
     the steps one by one for the exact failure; the trajectory is the same)."""
-    if any(w.number for w in data.warning):  # already at qpos0
+    if data.warning.number.any():  # already at qpos0
         return None
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
@@ -135,7 +135,7 @@ def _rollout(path: Path, model: mujoco.MjModel, data: mujoco.MjData, steps: int,
     # of step k holds the energy of step k - 1, the data the last step's
     kinetic = sensors[0, 1:, model.sensor_adr[model.sensor(_KINETIC).id]]
     max_kin = max(float(kinetic.max(initial=0.0)), float(data.energy[1]), 0.0)
-    if (any(w.number for w in data.warning) or not np.isfinite(states).all()
+    if (data.warning.number.any() or not np.isfinite(states).all()
             or not np.isfinite(max_kin) or max_kin > energy_factor * scale):
         return None
     return Validation(str(path), True, "valid", "", steps, max_kin, scale)
@@ -149,6 +149,7 @@ class Checked(NamedTuple):
     model: mujoco.MjModel | None  # compiled from spec
     spec: mujoco.MjSpec | None  # the file's, with a floor and a kinetic-energy sensor
     floor: mujoco.MjsGeom | None  # the floor plane added at z = 0 (None: the file's own)
+    data: mujoco.MjData | None = None  # model's, mj_forward at qpos0 (None: not simulated)
 
 
 def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float = 0.01,
@@ -156,7 +157,7 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
     """:func:`validate_robot`, and the robot as it was checked, so that the quality measures
     need not load it again (:func:`robovae.evaluate.quality.stage.stage_compiled`): its spec
     with a floor plane (its own, or :data:`FLOOR` added at ``z = 0``) and a kinetic-energy
-    sensor, and the compiled model (flags as in the file)."""
+    sensor, the compiled model (flags as in the file) and its data at rest."""
     path = Path(path)
     fail = lambda reason, detail, **kw: Validation(str(path), False, reason,  # noqa: E731
                                                     " ".join(str(detail).split()), **kw)
@@ -174,11 +175,13 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         robot_geom = model.geom_bodyid != 0
-        for c in data.contact[: data.ncon]:
-            if robot_geom[c.geom1] and robot_geom[c.geom2] and c.dist < -penetration_tol:
-                model.opt.enableflags = flags
-                return Checked(fail("self_penetration", f"geoms {c.geom1} and {c.geom2} overlap "
-                                    f"by {-c.dist:.3f} m at rest"), model, spec, floor)
+        pair, dist = data.contact.geom, data.contact.dist
+        deep = np.flatnonzero(robot_geom[pair].all(axis=1) & (dist < -penetration_tol))
+        if deep.size:
+            model.opt.enableflags = flags
+            (g1, g2), d = pair[deep[0]], dist[deep[0]]
+            return Checked(fail("self_penetration", f"geoms {g1} and {g2} overlap by {-d:.3f} m "
+                                "at rest"), model, spec, floor)
         mass = float(model.body_subtreemass[0])
         height = float(np.ptp(data.geom_xpos[robot_geom, 2])) if robot_geom.any() else 0.0
         scale = mass * 9.81 * max(height, 1.0) + 1.0
@@ -187,7 +190,9 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
         if v is None:
             v = _step_by_step(path, model, steps, scale, energy_factor)
         model.opt.enableflags = flags
-    return Checked(v, model, spec, floor)
+        mujoco.mj_resetData(model, data)
+        mujoco.mj_forward(model, data)
+    return Checked(v, model, spec, floor, data)
 
 
 def validate_robot(path: str | Path, duration: float = 1.0, penetration_tol: float = 0.01,

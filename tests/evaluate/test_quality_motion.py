@@ -123,7 +123,7 @@ def test_the_validators_model_gives_the_same_measures(tmp_path) -> None:
         path.write_text(spec.to_xml())
         checked = check_robot(path)
         assert checked.validation.valid and checked.floor is not None
-        st = stage_compiled(checked.model, checked.spec, checked.floor)
+        st = stage_compiled(checked.model, checked.spec, checked.floor, checked.data)
         assert st.floor_z == stage(path).floor_z > 0.2
         fresh, reused = measure(path), measure(st)
         same = [k for k in fresh if not k.startswith("t_") and k not in ("name", "path")]

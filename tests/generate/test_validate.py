@@ -82,7 +82,7 @@ def test_kinetic_energy_is_the_maximum_over_the_steps(tmp_path):
     """max_kinetic is the largest kinetic energy of the ``mj_step`` loop (one call of
     mujoco.rollout gives the same trajectory); check_robot returns the model it simulated, with
     a floor plane when the file has none."""
-    v, model, _, floor = check_robot(_write(tmp_path, "box", BOX.format(z=1)))
+    v, model, _, floor, _ = check_robot(_write(tmp_path, "box", BOX.format(z=1)))
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)

@@ -40,6 +40,7 @@ FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 MOVING = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                 mujoco.mjtWarning.mjWARN_BADQVEL)
+_BAD = [int(w) for w in BAD_WARNINGS]
 
 __all__ = ["FLOOR", "REST_KEYFRAMES", "Robot", "Stage", "compiled", "extent", "prepare",
            "rest_pose", "robot_points", "stage", "stage_compiled", "unstable"]
@@ -59,6 +60,7 @@ class Stage:
     floor_z: float  # height of the floor under the robot, m
     extent: float  # diagonal of the robot's bounding box at qpos0, m
     free: bool  # the root body has a free joint
+    data: mujoco.MjData  # model's data after mj_forward at qpos0: read it, never step it
 
 
 Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel | Stage
@@ -115,21 +117,20 @@ def _has_floor(model: mujoco.MjModel) -> bool:
 def _floor_height(model: mujoco.MjModel, data: mujoco.MjData, lowest: float) -> float:
     """Height of the highest upward-facing world plane not above the robot's lowest point
     (walls and ceilings are planes too); ``lowest`` when there is none (a height field)."""
-    z = [float(data.geom_xpos[g, 2]) for g in range(model.ngeom)
-         if model.geom_bodyid[g] == 0 and model.geom_type[g] == PLANE
-         and data.geom_xmat[g, 8] > 0.99 and data.geom_xpos[g, 2] <= lowest + 1e-3]
-    return max(z) if z else lowest
+    z = data.geom_xpos[(model.geom_bodyid == 0) & (model.geom_type == PLANE)
+                       & (data.geom_xmat[:, 8] > 0.99) & (data.geom_xpos[:, 2] <= lowest + 1e-3), 2]
+    return float(z.max()) if z.size else lowest
 
 
-def _stage_of(model: mujoco.MjModel, floor_z: float | None = None) -> Stage:
+def _stage_of(model: mujoco.MjModel) -> Stage:
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     root, _ = robot_root(model)
-    lowest = float(robot_points(model, data, root)[:, 2].min())
-    if floor_z is None:
-        floor_z = _floor_height(model, data, lowest)
+    pts = robot_points(model, data, root)
+    floor_z = _floor_height(model, data, float(pts[:, 2].min()))
+    size = max(float(np.linalg.norm(pts.max(0) - pts.min(0))), 1e-6)  # extent()
     free = bool(model.body_jntnum[root] >= 1 and model.jnt_type[model.body_jntadr[root]] == FREE)
-    return Stage(model, root, floor_z, extent(model, data, root), free)
+    return Stage(model, root, floor_z, size, free, data)
 
 
 def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = None
@@ -174,7 +175,7 @@ def stage(robot: Robot, integrator: int | None = None) -> Stage:
             return robot
         model = copy.copy(robot.model)
         model.opt.integrator = integrator
-        return Stage(model, robot.root, robot.floor_z, robot.extent, robot.free)
+        return Stage(model, robot.root, robot.floor_z, robot.extent, robot.free, robot.data)
     if isinstance(robot, mujoco.MjModel):
         if not _has_floor(robot):
             raise RobovaeError("robovae: model has no floor (pass the robot's file or MjSpec, "
@@ -186,8 +187,8 @@ def stage(robot: Robot, integrator: int | None = None) -> Stage:
     return prepare(robot, integrator)[1]
 
 
-def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec,
-                   floor: mujoco.MjsGeom | None) -> Stage:
+def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.MjsGeom | None,
+                   data: mujoco.MjData | None = None) -> Stage:
     """The :class:`Stage` that :func:`prepare` gives for a robot, from its spec already compiled
     into ``model`` with a floor (the validator's,
     :func:`robovae.generate.validate.check_robot`), without loading it again.
@@ -197,15 +198,16 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec,
     once more (``spec`` is changed; ``model`` is not). ``None``: the floor is the robot's own
     and ``model`` is staged as it is (a copy). When other world geoms sit beside the added
     plane (a height field: :func:`prepare` would add no floor), the plane is deleted and the
-    spec prepared from scratch.
+    spec prepared from scratch. ``data``: ``model``'s data at ``qpos0`` (made when None).
     """
     if floor is None:
         return stage(model)
     if np.count_nonzero(model.geom_bodyid == 0) != 1:
         spec.delete(floor)
         return prepare(spec)[1]
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    if data is None:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
     lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
     floor.pos = [0.0, 0.0, lowest]
     floor.condim = 3  # as prepare adds it, whatever the file's default class says
@@ -233,4 +235,4 @@ def rest_pose(model: mujoco.MjModel) -> np.ndarray:
 def unstable(data: mujoco.MjData) -> bool:
     """NaN/Inf state or a MuJoCo instability warning (bad qacc/qpos/qvel) since the last reset."""
     finite = np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()
-    return not finite or any(data.warning[w].number for w in BAD_WARNINGS)
+    return not finite or bool(data.warning.number[_BAD].any())

@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 from robovae.data.mjcf import robot_root
-from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, compiled
+from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled
 
 __all__ = ["Anatomy", "anatomy", "mirrored"]
 
@@ -95,8 +95,11 @@ def anatomy(robot: Robot, tolerance: float = 0.1) -> Anatomy:
         RobotFileError: a file that does not load.
     """
     model = compiled(robot)
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    if isinstance(robot, Stage):
+        data = robot.data
+    else:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
     root, _ = robot_root(model)
     kids: dict[int, list[int]] = {}
     for b in range(1, model.nbody):
