@@ -123,16 +123,16 @@ def _step_by_step(path: Path, model: mujoco.MjModel, steps: int, scale: float,
 def _rollout(path: Path, model: mujoco.MjModel, data: mujoco.MjData, steps: int,
              scale: float, energy_factor: float) -> Validation | None:
     """Checks 3-5 in one ``mujoco.rollout`` call from ``data``'s state (``mj_forward`` at
-    ``qpos0``): the valid result, or None when anything looks wrong (the caller then replays
-    the steps one by one for the exact failure; the trajectory is the same)."""
+    ``qpos0``, energy flag on): the valid result, or None when anything looks wrong (the caller
+    then replays the steps one by one for the exact failure; the trajectory is the same)."""
     if data.warning.number.any():  # already at qpos0
         return None
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state0, spec)
     states, sensors = rollout.rollout(model, data, state0[None], nstep=steps)
-    # MuJoCo fills the energy of a step before its kinetic-energy sensor reads it: the sensor
-    # of step k holds the energy of step k - 1, the data the last step's
+    # the sensor reads data.energy before the step's forward pass renews it (with any
+    # integrator): the sensor of step k holds the energy of step k - 1, the data the last one
     kinetic = sensors[0, 1:, model.sensor_adr[model.sensor(_KINETIC).id]]
     max_kin = max(float(kinetic.max(initial=0.0)), float(data.energy[1]), 0.0)
     if (data.warning.number.any() or not np.isfinite(states).all()
@@ -170,15 +170,12 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
         if not (model.jnt_type != mujoco.mjtJoint.mjJNT_FREE).any():
             return Checked(fail("degenerate", f"{model.nbody - 1} bodies and no joint besides a "
                                 "free base: nothing moves"), model, spec, floor)
-        flags = model.opt.enableflags
-        model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         robot_geom = model.geom_bodyid != 0
         pair, dist = data.contact.geom, data.contact.dist
         deep = np.flatnonzero(robot_geom[pair].all(axis=1) & (dist < -penetration_tol))
         if deep.size:
-            model.opt.enableflags = flags
             (g1, g2), d = pair[deep[0]], dist[deep[0]]
             return Checked(fail("self_penetration", f"geoms {g1} and {g2} overlap by {-d:.3f} m "
                                 "at rest"), model, spec, floor)
@@ -186,10 +183,14 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
         height = float(np.ptp(data.geom_xpos[robot_geom, 2])) if robot_geom.any() else 0.0
         scale = mass * 9.81 * max(height, 1.0) + 1.0
         steps = max(1, math.ceil(duration / model.opt.timestep))
-        v = _rollout(path, model, data, steps, scale, energy_factor)
-        if v is None:
-            v = _step_by_step(path, model, steps, scale, energy_factor)
-        model.opt.enableflags = flags
+        flags = model.opt.enableflags
+        model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+        try:
+            v = _rollout(path, model, data, steps, scale, energy_factor)
+            if v is None:
+                v = _step_by_step(path, model, steps, scale, energy_factor)
+        finally:
+            model.opt.enableflags = flags
         mujoco.mj_resetData(model, data)
         mujoco.mj_forward(model, data)
     return Checked(v, model, spec, floor, data)

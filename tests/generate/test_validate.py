@@ -78,11 +78,13 @@ def test_duration_sets_the_number_of_steps(tmp_path, duration):
     assert v.steps == round(duration / 0.002)
 
 
-def test_kinetic_energy_is_the_maximum_over_the_steps(tmp_path):
+@pytest.mark.parametrize("integrator", ["Euler", "RK4", "implicitfast"])
+def test_kinetic_energy_is_the_maximum_over_the_steps(tmp_path, integrator):
     """max_kinetic is the largest kinetic energy of the ``mj_step`` loop (one call of
     mujoco.rollout gives the same trajectory); check_robot returns the model it simulated, with
     a floor plane when the file has none."""
-    v, model, _, floor, _ = check_robot(_write(tmp_path, "box", BOX.format(z=1)))
+    path = _write(tmp_path, "box", BOX.format(z=1), f'<option integrator="{integrator}"/>')
+    v, model, _, floor, _ = check_robot(path)
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
