@@ -122,8 +122,18 @@ def _floor_height(model: mujoco.MjModel, data: mujoco.MjData, lowest: float) -> 
     return float(z.max()) if z.size else lowest
 
 
-def _stage_of(model: mujoco.MjModel) -> Stage:
-    data = mujoco.MjData(model)
+_SIZES = ("nq", "nv", "nu", "na", "nbody", "njnt", "ngeom", "nsite", "ncam", "nlight",
+          "nmocap", "neq", "ntendon", "nsensordata", "nuserdata", "nplugin", "nbuffer",
+          "narena")
+
+
+def _stage_of(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> Stage:
+    """The stage of a model with a floor; ``data``: an MjData to reuse when it was made for a
+    model of the same sizes (allocating one costs more than the measures at rest)."""
+    if data is None or any(getattr(data.model, k) != getattr(model, k) for k in _SIZES):
+        data = mujoco.MjData(model)
+    else:
+        mujoco.mj_resetData(model, data)
     mujoco.mj_forward(model, data)
     root, _ = robot_root(model)
     pts = robot_points(model, data, root)
@@ -212,7 +222,7 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
     floor.pos = [0.0, 0.0, lowest]
     floor.condim = 3  # as prepare adds it, whatever the file's default class says
     with capture_mujoco_warnings():
-        return _stage_of(spec.compile())
+        return _stage_of(spec.compile(), data)
 
 
 def rest_pose(model: mujoco.MjModel) -> np.ndarray:
