@@ -129,3 +129,5 @@ def test_the_validators_model_gives_the_same_measures(tmp_path) -> None:
         same = [k for k in fresh if not k.startswith("t_") and k not in ("name", "path")]
         assert "stands" in same and "error" not in same
         assert {k: fresh[k] for k in same} == {k: reused[k] for k in same}
+        # the standing test simulated on the stage's data and left it at rest
+        assert st.data.time == 0 and (st.data.qpos == st.model.qpos0).all()

@@ -60,7 +60,7 @@ class Stage:
     floor_z: float  # height of the floor under the robot, m
     extent: float  # diagonal of the robot's bounding box at qpos0, m
     free: bool  # the root body has a free joint
-    data: mujoco.MjData  # model's data after mj_forward at qpos0: read it, never step it
+    data: mujoco.MjData  # model's, mj_forward at qpos0 (a measure that steps it restores it)
 
 
 Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel | Stage
