@@ -86,6 +86,15 @@ def test_gait_speed_is_seeded_and_a_weak_robot_moves_less() -> None:
     assert gait_speed(procedural_spec(2, "quadruped"), **FAST) == strong.speed
 
 
+def test_a_gait_that_falls_stops_counting() -> None:
+    quad = procedural_spec(2, "quadruped")
+    free = gait(quad, **FAST)
+    assert gait(quad, max_tilt=180.0, **FAST).speed == free.speed  # never falls
+    # the root tilts a little from the first sample on: with a 0° bound it has always fallen
+    assert gait(quad, max_tilt=0.0, **FAST).speed == 0.0
+    assert 0.0 <= gait(quad, max_tilt=20.0, **FAST).speed <= free.speed
+
+
 def test_a_robot_without_actuators_does_not_move() -> None:
     r = gait(stick(), **FAST)
     assert r.speed == 0.0 and math.isnan(r.frequency)
