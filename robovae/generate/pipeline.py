@@ -247,8 +247,12 @@ def worker_pool(jobs: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
 
 
-def _build_one(item: tuple) -> dict:
-    """Write one robot folder and validate it (runs in a worker process)."""
+def build_robot(item: tuple) -> dict:
+    """Write one robot folder, validate it and measure its quality (what a worker process does
+    for each robot): ``item`` is ``(graph, folder, feature_set, name, scene, validate,
+    quality)``. Returns the robot's part of its manifest record (``rules``, ``counts``,
+    ``valid``, ``reason``, ``detail``, ``quality``); a graph the writer cannot write is a
+    ``compile`` failure, never an exception."""
     graph, folder, feature_set, name, scene, validate, quality = item
     try:
         # the validator loads the file anyway; append_records syncs the batch's files at once
@@ -301,12 +305,12 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
         items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality))
     jobs = jobs or (os.cpu_count() or 1)
     if pool is not None:
-        built = list(pool.map(_build_one, items, chunksize=4))
+        built = list(pool.map(build_robot, items, chunksize=4))
     elif jobs == 1 or len(items) < 4:
-        built = [_build_one(item) for item in items]
+        built = [build_robot(item) for item in items]
     else:
         with worker_pool(jobs) as tmp_pool:
-            built = list(tmp_pool.map(_build_one, items, chunksize=4))
+            built = list(tmp_pool.map(build_robot, items, chunksize=4))
     for rec, b in zip(records, built):
         rec["rules"] = rec["rules"] + b.pop("rules")
         rec.update(b)
