@@ -12,7 +12,7 @@ and CPU seconds, the CPU of this process or of the finished worker processes):
   ``os.sync`` at the end, as the pipeline's workers write);
 - ``validate``: MuJoCo only (the files exist), in 1 and in ``--jobs`` worker processes;
 - ``write + validate + quality``: what the pipeline's workers do for each robot
-  (:func:`robovae.generate.pipeline.build_robot`), in ``--jobs`` worker processes, and the
+  (:func:`robovae.generate.build.build_robot`), in ``--jobs`` worker processes, and the
   same less a separate run of the workers' start-up (imports, one robot each);
 - with ``--ckpt``, the whole ``generate()`` (decode, write, validate and measure in the
   workers).
@@ -38,7 +38,8 @@ import torch
 
 from robovae.data.procedural import parse_procedural, procedural_graphs
 from robovae.evaluate.tables import format_table
-from robovae.generate.pipeline import build_robot, generate, latent, worker_pool
+from robovae.generate.build import build_robot
+from robovae.generate.pipeline import generate, latent, worker_pool
 from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
 from robovae.generate.validate import validate_many

@@ -32,14 +32,11 @@ import torch
 
 from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
-from robovae.evaluate.quality.measure import robot_quality
 from robovae.evaluate.quality.report import summarize as quality_summary
-from robovae.evaluate.quality.stage import stage_compiled
 from robovae.evaluate.samples import robot_record, sample_metrics
+from robovae.generate.build import build_robot
 from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
-from robovae.generate.validate import check_robot
-from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import RoboVAE
@@ -245,29 +242,6 @@ def worker_pool(jobs: int) -> ProcessPoolExecutor:
     forked from a process whose torch/OpenMP threads are running can deadlock in its first
     torch call."""
     return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
-
-
-def build_robot(item: tuple) -> dict:
-    """Write one robot folder, validate it and measure its quality (what a worker process does
-    for each robot): ``item`` is ``(graph, folder, feature_set, name, scene, validate,
-    quality)``. Returns the robot's part of its manifest record (``rules``, ``counts``,
-    ``valid``, ``reason``, ``detail``, ``quality``); a graph the writer cannot write is a
-    ``compile`` failure, never an exception."""
-    graph, folder, feature_set, name, scene, validate, quality = item
-    try:
-        # the validator loads the file anyway; append_records syncs the batch's files at once
-        res = write_robot(graph, folder, feature_set, name=name, scene=scene,
-                          check=not validate, durable=False)
-    except Exception as e:  # the rules make every graph writable; never lose a whole batch
-        return {"rules": [], "counts": {}, "valid": False, "reason": "compile",
-                "detail": f"writer error: {' '.join(str(e).split())}"}
-    rec = {"rules": res.rules, "counts": res.counts}
-    if validate:
-        v, model, spec, floor, data = check_robot(res.robot_path)
-        rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
-        if v.valid and quality:  # attached, symmetric, standing ... (robovae.evaluate.quality)
-            rec["quality"] = robot_quality(stage_compiled(model, spec, floor, data))
-    return rec
 
 
 def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
