@@ -39,12 +39,13 @@ import torch
 from robovae.data.procedural import parse_procedural, procedural_graphs
 from robovae.evaluate.tables import format_table
 from robovae.generate.build import build_robot
-from robovae.generate.pipeline import generate, latent, worker_pool
 from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
 from robovae.generate.validate import validate_many
 from robovae.generate.writer import write_robot
-from robovae.model.checkpoint import load_model
+
+# The model stack (robovae.model, Lightning) is imported in main(): the spawned workers import
+# this script again and, like robovae generate's, need only the writer, validator and measures.
 
 
 def _cpu(children: bool = False) -> float:
@@ -82,6 +83,9 @@ def main() -> None:
     p.add_argument("--batch-size", type=int, default=256)
     p.add_argument("--root", default=None, help="work folder (default: a temp folder)")
     args = p.parse_args()
+    from robovae.generate.pipeline import generate, latent, worker_pool
+    from robovae.model.checkpoint import load_model
+
     root = Path(args.root or tempfile.mkdtemp(prefix="robovae_genbench_"))
     rows = []
 
