@@ -18,9 +18,9 @@ A robot is ``valid`` when all of these hold (SPEC §4, validity):
 The first failing check gives the reason. The simulation runs in one ``mujoco.rollout`` call
 (no Python per step; the kinetic energy of each step comes from an ``e_kinetic`` sensor added
 to the model); a robot that fails is replayed one ``mj_step`` at a time, the same trajectory,
-for the exact step and reason. :func:`check_robot` also returns the compiled model, so that
-the quality measures need not compile the robot again. :func:`validate_many` runs robots in
-worker processes.
+for the exact step and reason. :func:`check_robot` also returns the spec and compiled model,
+so that the quality measures need not load the file again. :func:`validate_many` runs robots
+in worker processes.
 """
 
 from __future__ import annotations
@@ -49,6 +49,7 @@ _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_CNSTRFULL: "constraint buffer full",
 }
 _KINETIC = "robovae_kinetic_energy"
+_NO_SENSORS = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 REASONS = ("valid", "compile", "degenerate", "self_penetration", "nan_inf", "mujoco_warning",
            "energy_blowup")
 
@@ -125,8 +126,8 @@ def _rollout(path: Path, model: mujoco.MjModel, data: mujoco.MjData, steps: int,
     """Checks 3-5 in one ``mujoco.rollout`` call from ``data``'s state (``mj_forward`` at
     ``qpos0``, energy flag on): the valid result, or None when anything looks wrong (the caller
     then replays the steps one by one for the exact failure; the trajectory is the same)."""
-    if data.warning.number.any():  # already at qpos0
-        return None
+    if data.warning.number.any() or model.opt.disableflags & _NO_SENSORS:
+        return None  # warned at qpos0 already, or no sensor data to read the energy from
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state0, spec)

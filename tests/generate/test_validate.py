@@ -49,9 +49,12 @@ def test_self_penetration_at_rest(tmp_path):
     assert validate_robot(_write(tmp_path, "apart", apart)).valid
 
 
-def test_energy_blowup(tmp_path):
-    """Gravity 10^4 times Earth's: the fall gains far more energy than m g h allows."""
-    path = _write(tmp_path, "fast", BOX.format(z=2), '<option gravity="0 0 -1e5"/>')
+@pytest.mark.parametrize("flags", ["", '<flag sensor="disable"/>'])
+def test_energy_blowup(tmp_path, flags):
+    """Gravity 10^4 times Earth's: the fall gains far more energy than m g h allows (also when
+    the file turns sensors off)."""
+    path = _write(tmp_path, "fast", BOX.format(z=2),
+                  f'<option gravity="0 0 -1e5">{flags}</option>')
     v = validate_robot(path)
     assert v.reason == "energy_blowup" and v.max_kinetic > 100 * v.energy_scale
 
