@@ -1,82 +1,157 @@
-"""Benchmark: throughput of each quality measure (robots/s) and of all of them on 2 cores.
+"""Benchmark: CPU time of validation and of each quality measure per robot, and of all of them
+for many robots on ``--jobs`` cores (issue 21: 10,000 validated robots with every measure but
+locomotion in <= 120 s on 2 cores, i.e. about 24 ms of CPU per robot).
 
-Robots: ``--samples DIR`` (a ``robovae generate`` folder, valid robots) or ``--n`` procedural
-robots. Measures every robot once in one process (per-measure times from the records'
-``t_<measure>`` fields: loading with a floor, anatomy + symmetry, attachment + penetration,
-standing, graph descriptors) and then all measures but locomotion in ``--jobs`` worker
-processes (wall clock, workers started inside the timing), and locomotion (64 rollouts of 4 s)
-on ``--gait`` robots. Prints one table, and the time 10,000 robots would take at the measured
-multi-process rate (the issue's target: ≤ 120 s with every measure but locomotion, 2 cores).
+Robots (``--robots``): ``written`` (default; the graphs of ``--n`` procedural robots and of the
+zoo written the way ``robovae generate`` writes a decoded robot,
+:func:`robovae.evaluate.quality.populations.written_files`), ``procedural`` (the procedural
+generator's own MJCF files) or a ``robovae generate`` folder (``--samples DIR``).
 
-    PYTHONPATH=. python benchmarks/quality.py --n 200 --jobs 2 --gait 8
+1. Per robot, in this process, after ``--warmup`` robots, the CPU time (``time.process_time``)
+   of each stage as ``robovae generate`` runs it: ``validate`` (parse, compile with a floor,
+   1 s of simulation: :func:`~robovae.generate.validate.check_robot`), ``load`` (the
+   validator's floor moved to the robot's lowest point and the spec compiled once more:
+   :func:`~robovae.evaluate.quality.stage.stage_compiled`), ``anatomy`` (counts, limbs,
+   symmetry), ``attachment`` (detached bodies, self-penetration), ``standing`` (3 s PD-held),
+   ``descriptors`` (graph descriptors).
+2. Validation and every measure but locomotion (``measure(describe=True)``) of every robot in
+   ``--jobs`` worker processes (``spawn``): the workers' CPU time and the wall clock, less
+   those of a separate run of the workers' start-up (imports and one robot each).
+3. Locomotion (64 rollouts of 4 s) on ``--gait`` robots, in this process.
+
+Prints one table, the load average, and the time of 10,000 robots: the CPU per robot over
+``--jobs`` (an otherwise idle machine with that many cores) and at the measured wall rate (this
+machine as loaded as it was).
+
+    PYTHONPATH=. python benchmarks/quality.py --n 200 --jobs 2 --gait 4
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
+import resource
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from robovae.evaluate.analyze import sample_files
-from robovae.evaluate.quality.measure import measure, measure_many
-from robovae.evaluate.quality.populations import procedural_files
+from robovae.data.mjcf import model_to_graph
+from robovae.evaluate.descriptors import descriptors
+from robovae.evaluate.quality.attachment import attachment
+from robovae.evaluate.quality.measure import measure
+from robovae.evaluate.quality.populations import procedural_files, written_files
+from robovae.evaluate.quality.stage import stage_compiled
+from robovae.evaluate.quality.standing import standing
+from robovae.evaluate.quality.symmetry import anatomy
 from robovae.evaluate.tables import format_table
+from robovae.generate.validate import check_robot
 
-MEASURES = ("load", "anatomy", "attachment", "standing", "descriptors")
+STAGES = ("validate", "load", "anatomy", "attachment", "standing", "descriptors")
+
+
+def stage_times(path: str) -> dict[str, float]:
+    """CPU seconds of each stage of one robot (module docstring, 1.); the measures only for a
+    valid robot."""
+    out = {}
+    t = time.process_time()
+    v, model, spec, floor, data = check_robot(path)
+    out["validate"] = time.process_time() - t
+    if not v.valid:
+        return out
+    t = time.process_time()
+    st = stage_compiled(model, spec, floor, data)
+    out["load"] = time.process_time() - t
+    for name, fn in (("anatomy", anatomy), ("attachment", attachment), ("standing", standing),
+                     ("descriptors", lambda s: descriptors(model_to_graph(s.model)))):
+        t = time.process_time()
+        fn(st)
+        out[name] = time.process_time() - t
+    return out
+
+
+def validate_and_measure(path: str) -> bool:
+    """What a generation worker does for one robot file: validate it and, when valid, measure
+    it on the validator's model (every measure but locomotion). Returns validity."""
+    v, model, spec, floor, data = check_robot(path)
+    if v.valid:
+        measure(stage_compiled(model, spec, floor, data), describe=True)
+    return v.valid
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _files(args: argparse.Namespace, tmp: str) -> list[str]:
+    if args.samples:
+        from robovae.evaluate.analyze import sample_files
+
+        return [str(f) for _, f in sample_files(args.samples)][:args.n]
+    if args.robots == "procedural":
+        return [str(f) for f in procedural_files(args.n, tmp)]
+    return [str(f) for f in written_files(args.n, tmp)]
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("--samples", help="robovae generate folder (default: procedural robots)")
-    p.add_argument("--n", type=int, default=200, help="robots")
+    p.add_argument("--robots", choices=("written", "procedural"), default="written")
+    p.add_argument("--samples", help="robovae generate folder (instead of --robots)")
+    p.add_argument("--n", type=int, default=200, help="robots (written: plus the zoo's)")
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--gait", type=int, default=8, help="robots for the locomotion measure")
+    p.add_argument("--warmup", type=int, default=5, help="robots run before timing")
+    p.add_argument("--gait", type=int, default=4, help="robots for the locomotion measure")
     args = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        files = ([f for _, f in sample_files(args.samples)][:args.n] if args.samples
-                 else procedural_files(args.n, tmp))
-        what = args.samples or "procedural"
-        rows = [measure(f) for f in files]
-        ok = [r for r in rows if "error" not in r]
+        files = _files(args, tmp)
+        for f in files[:args.warmup]:
+            stage_times(f)
+        per = [stage_times(f) for f in files]
+        valid = [r for r in per if "load" in r]
         table = []
-        for k in MEASURES:
-            t = np.array([r[f"t_{k}"] for r in ok if f"t_{k}" in r])
-            table.append({"measure": k, "robots": len(t), "ms/robot (1 core)":
-                          f"{1e3 * t.mean():.1f} ± {1e3 * t.std():.1f}",
-                          "robots/s (1 core)": f"{1 / t.mean():.1f}"})
-        per_robot = sum(float(np.mean([r[f"t_{k}"] for r in ok])) for k in MEASURES[:4])
-        table.append({"measure": "sum: load + anatomy + attachment + standing",
-                      "robots": len(ok), "ms/robot (1 core)": f"{1e3 * per_robot:.1f}",
-                      "robots/s (1 core)": f"{1 / per_robot:.1f}"})
-        start = time.perf_counter()
-        measure_many(files[:args.jobs], jobs=args.jobs, progress=False, describe=False)
-        startup = time.perf_counter() - start  # spawning workers (imports) + one robot each
-        start = time.perf_counter()
-        measure_many(files, jobs=args.jobs, progress=False, describe=False)
-        wall = time.perf_counter() - start
-        table.append({"measure": f"all but locomotion and descriptors, {args.jobs} processes",
-                      "robots": len(files), "ms/robot (1 core)": "-",
-                      "robots/s (1 core)": f"{len(files) / wall:.1f} (wall, {args.jobs} jobs)"})
-        start = time.perf_counter()
-        g = measure_many(files[:args.gait], jobs=args.jobs, progress=False, describe=False,
-                         locomotion=True)
-        gwall = time.perf_counter() - start
-        tg = np.array([r["t_gait"] for r in g if "t_gait" in r])
-        table.append({"measure": "locomotion (64 x 4 s)", "robots": len(tg),
-                      "ms/robot (1 core)": f"{1e3 * tg.mean():.0f} ± {1e3 * tg.std():.0f}",
-                      "robots/s (1 core)": f"{1 / tg.mean():.2f}; {len(g) / gwall:.2f} "
-                                           f"(wall, {args.jobs} jobs, all measures)"})
-    print(f"robots: {len(files)} ({what}), {len(rows) - len(ok)} errors")
-    print(format_table(table, ["measure", "robots", "ms/robot (1 core)", "robots/s (1 core)"]))
-    steady = max(wall - startup, 1e-9)
-    print(f"10,000 robots, every measure but locomotion, {args.jobs} processes: "
-          f"{10_000 * wall / len(files):.0f} s at the measured wall rate (worker start-up "
-          f"{startup:.1f} s included once per {len(files)} robots), "
-          f"{startup + 10_000 * steady / len(files):.0f} s with start-up once, "
-          f"{10_000 * per_robot / args.jobs:.0f} s from the 1-core sum on {args.jobs} free "
-          "cores (target 120 s)")
+        for k in STAGES:
+            t = np.array([r[k] for r in (per if k == "validate" else valid)])
+            table.append({"stage": k, "robots": len(t),
+                          "CPU ms/robot": f"{1e3 * t.mean():.2f} ± {1e3 * t.std():.2f}"})
+        cpu = float(np.mean([sum(r.values()) for r in per]))
+        table.append({"stage": "total (validation + every measure but locomotion)",
+                      "robots": len(per), "CPU ms/robot": f"{1e3 * cpu:.2f}"})
+
+        ctx = multiprocessing.get_context("spawn")
+        c0, w0 = _children_cpu(), time.perf_counter()
+        with ProcessPoolExecutor(args.jobs, mp_context=ctx) as pool:
+            list(pool.map(validate_and_measure, files[:args.jobs]))
+        startup, startup_cpu = time.perf_counter() - w0, _children_cpu() - c0
+        c0, w0 = _children_cpu(), time.perf_counter()
+        with ProcessPoolExecutor(args.jobs, mp_context=ctx) as pool:
+            chunk = max(1, min(16, len(files) // (4 * args.jobs)))
+            list(pool.map(validate_and_measure, files, chunksize=chunk))
+        wall = time.perf_counter() - w0 - startup
+        workers_cpu = _children_cpu() - c0 - startup_cpu
+        table.append({"stage": f"the same in {args.jobs} processes (less a separate run of the "
+                               f"workers' start-up: {startup:.1f} s, {startup_cpu:.1f} s CPU)",
+                      "robots": len(files),
+                      "CPU ms/robot": f"{1e3 * workers_cpu / len(files):.2f} "
+                                      f"({1e3 * wall / len(files):.2f} wall)"})
+        if args.gait:
+            t = time.process_time()
+            for f in files[:args.gait]:
+                measure(f, locomotion=True, describe=False)
+            gait = (time.process_time() - t) / args.gait
+            table.append({"stage": "locomotion (64 x 4 s) with every other measure",
+                          "robots": args.gait, "CPU ms/robot": f"{1e3 * gait:.0f}"})
+    what = args.samples or args.robots
+    print(f"robots: {len(files)} ({what}), {len(valid)} valid; load average "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(format_table(table, ["stage", "robots", "CPU ms/robot"]))
+    print(f"10,000 robots, validation + every measure but locomotion, {args.jobs} cores: "
+          f"{10_000 * cpu / args.jobs:.0f} s from the CPU per robot (idle cores), "
+          f"{10_000 * workers_cpu / len(files) / args.jobs:.0f} s from the workers' CPU, "
+          f"{startup + 10_000 * wall / len(files):.0f} s at the measured wall rate of this "
+          f"machine (as loaded as it was), worker start-up once (target 120 s)")
 
 
 if __name__ == "__main__":

@@ -5,21 +5,21 @@ finite float, higher is better, 0 for a robot that cannot do the task) and ``err
 one-line reason). Every measure is deterministic for a file and ``seed``. (The sample-quality
 measures being written in :mod:`robovae.evaluate` can replace these behind the same interface.)
 
-- **walk** (:func:`walk_score`): the best open-loop sinusoidal gait found by a fixed, seeded
-  random search of ``trials`` gaits (8). The robot is put in the ``robovae/Walk-v0`` scene
-  (:func:`robovae.envs.walk.walk_scene`: floor, free base). A gait drives actuator ``j`` with
-  the normalised action ``a_j(t) = A_j sin(2 pi f t + phi_j)`` (scaled to the control range as
-  in the environment), with ``f ~ U[0.5, 3] Hz``, ``A_j = A u_j`` (a gait amplitude ``A``
-  log-uniform in ``[0.1, 1]``, ``u_j ~ U[0.5, 1]``) and ``phi_j ~ U[0, 2 pi)``.
-  It runs ``seconds`` (3 s); its speed is the root's horizontal displacement between
-  ``settle`` (1 s) and the end, divided by that time and by the robot's **extent** ``L`` (the
-  diagonal of its bounding box at ``qpos0``, m): body lengths per second, so that size alone
-  does not win. When the robot **falls** — its root's up axis (the local direction that points
-  up at ``qpos0``) tilts more than ``max_tilt`` (60°) from vertical at a 10 ms sample, the
-  bound of ``robovae/Walk-v0``'s health — the displacement stops counting there (tumbling is
-  not walking) but the time still runs to the end: falling early costs. A rollout that
-  diverges (non-finite state or a MuJoCo instability warning) scores 0. ``score`` is the best
-  gait's speed; ``speed`` is the same in m/s.
+- **walk** (:func:`walk_score`): the quality measure's gait search
+  (:func:`robovae.evaluate.quality.locomotion.gait`, one sinusoidal-gait scorer for the
+  project) with the optimiser's budget: ``trials`` (8) seeded random open-loop gaits of
+  ``seconds`` (3 s) each, in the ``robovae/Walk-v0`` scene (:func:`robovae.envs.walk.walk_scene`:
+  floor, free base). Gait ``j`` drives actuator ``a`` with ``c_a + A_a h_a sin(2 pi f t +
+  phi_a)`` (``c_a``, ``h_a`` the middle and half-width of its control range), ``A_a ~ U[0, 1]``,
+  ``phi_a ~ U[0, 2 pi)``, ``f ~ U[0.5, 3] Hz``, from the robot's rest pose. Its speed is the
+  root's horizontal displacement from ``settle`` (1 s) to the end, divided by that time and by
+  the robot's **extent** ``L`` (the diagonal of its bounding box at ``qpos0``, m): body lengths
+  per second, so that size alone does not win. When the robot **falls** — its root's up axis
+  tilts more than ``max_tilt`` (60°, the bound of ``robovae/Walk-v0``'s health) from vertical
+  at a 10 ms sample — the displacement stops counting there (tumbling is not walking) but the
+  time still runs to the end: falling early costs. A rollout that diverges scores 0. ``score``
+  is the best gait's speed; ``speed`` is the same in m/s. (The quality table's locomotion
+  measure searches 64 gaits of 4 s and does not stop at falls.)
 - **stand** (:func:`stand_score`): :func:`robovae.evaluate.behaviour.standing_test` for 3 s
   (joints PD-held at ``qpos0`` with the robot's own torque limits); ``score`` is the lowest
   root height over the test as a fraction of its height at ``qpos0`` (``min_height_ratio``),
@@ -42,71 +42,29 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robovae.data.loading import capture_mujoco_warnings
+from robovae.evaluate.quality.locomotion import gait
 
 __all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_score"]
 
 #: Changes whenever a measure changes: an optimisation log of another version is not continued.
-SCORE_VERSION = 2
+#: 3: the walk score is the quality measure's gait search (issue 22).
+SCORE_VERSION = 3
 
-_BAD = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
-        mujoco.mjtWarning.mjWARN_BADQVEL)
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 
 
-def _rollout(model: mujoco.MjModel, lo: np.ndarray, hi: np.ndarray, root: int, freq: float,
-             amp: np.ndarray, phase: np.ndarray, seconds: float, settle: float,
-             cos_tilt: float) -> float:
-    """Horizontal root displacement (m) between ``settle`` and ``seconds`` of one gait, or
-    until the root tilts more than ``acos(cos_tilt)`` from its initial up axis (checked every
-    10 ms; 0 when that happens before ``settle``); NaN when the simulation diverges."""
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
-    dt = model.opt.timestep
-    steps, start = int(round(seconds / dt)), int(round(settle / dt))
-    every = max(1, int(round(0.01 / dt)))
-    p0 = data.xpos[root, :2].copy()
-    for t in range(steps):
-        a = amp * np.sin(2.0 * math.pi * freq * t * dt + phase)
-        data.ctrl[:] = lo + 0.5 * (a + 1.0) * (hi - lo)
-        mujoco.mj_step(model, data)
-        if t + 1 == start:
-            p0 = data.xpos[root, :2].copy()
-        if (t + 1) % every == 0 and (data.xmat[root].reshape(3, 3) @ up_local)[2] < cos_tilt:
-            break  # fallen: what it walked before counts, the tumbling after does not
-    if t + 1 <= start:
-        p0 = data.xpos[root, :2].copy()
-    if any(data.warning[w].number for w in _BAD) or not np.isfinite(data.qpos).all():
-        return math.nan
-    return float(np.linalg.norm(data.xpos[root, :2] - p0))
-
-
 def walk_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
                settle: float = 1.0, max_tilt: float = 60.0) -> dict:
-    """Best open-loop gait speed in body lengths per second (module docstring)."""
+    """Best open-loop gait speed in body lengths per second (module docstring): ``trials``
+    gaits of ``seconds``, the first ``settle`` seconds not counted."""
     from robovae.envs.walk import walk_scene
 
     _, scene = walk_scene(path)
-    model = scene.model
-    lo, hi = model.actuator_ctrlrange.T.copy()
-    unlimited = model.actuator_ctrllimited == 0
-    lo[unlimited], hi[unlimited] = -1.0, 1.0
-    rng = np.random.default_rng(seed)
-    best, best_gait = 0.0, None
-    with capture_mujoco_warnings():
-        for _ in range(trials):
-            freq = float(rng.uniform(0.5, 3.0))
-            amp = math.exp(rng.uniform(math.log(0.1), 0.0)) * rng.uniform(0.5, 1.0, model.nu)
-            phase = rng.uniform(0.0, 2.0 * math.pi, model.nu)
-            d = _rollout(model, lo, hi, scene.root, freq, amp, phase, seconds, settle,
-                         math.cos(math.radians(max_tilt)))
-            speed = d / (seconds - settle) if math.isfinite(d) else 0.0
-            if speed > best:
-                best, best_gait = speed, freq
-    return {"score": best / scene.size, "speed": best, "extent": scene.size,
-            "frequency": best_gait}
+    g = gait(scene.model, rollouts=trials, seconds=seconds, seed=seed,
+             settle=settle / seconds, max_tilt=max_tilt)
+    return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
+            "frequency": g.frequency}
 
 
 def stand_score(path: str | os.PathLike, seed: int = 0, seconds: float = 3.0) -> dict:

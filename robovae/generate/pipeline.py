@@ -32,13 +32,11 @@ import torch
 
 from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
-from robovae.evaluate.quality.measure import robot_quality
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
+from robovae.generate.build import build_robot
 from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
-from robovae.generate.validate import validate_robot
-from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import RoboVAE
@@ -246,25 +244,6 @@ def worker_pool(jobs: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
 
 
-def _build_one(item: tuple) -> dict:
-    """Write one robot folder and validate it (runs in a worker process)."""
-    graph, folder, feature_set, name, scene, validate, quality = item
-    try:
-        # the validator loads the file anyway; append_records syncs the batch's files at once
-        res = write_robot(graph, folder, feature_set, name=name, scene=scene,
-                          check=not validate, durable=False)
-    except Exception as e:  # the rules make every graph writable; never lose a whole batch
-        return {"rules": [], "counts": {}, "valid": False, "reason": "compile",
-                "detail": f"writer error: {' '.join(str(e).split())}"}
-    rec = {"rules": res.rules, "counts": res.counts}
-    if validate:
-        v = validate_robot(res.robot_path)
-        rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
-        if v.valid and quality:  # attached, symmetric, standing ... (robovae.evaluate.quality)
-            rec["quality"] = robot_quality(res.robot_path)
-    return rec
-
-
 def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   graphs: Sequence[RobotData], out: Path, seed: int = 0,
                   temperature: float = 1.0, validate: bool = True, jobs: int = 0,
@@ -300,12 +279,12 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
         items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality))
     jobs = jobs or (os.cpu_count() or 1)
     if pool is not None:
-        built = list(pool.map(_build_one, items, chunksize=4))
+        built = list(pool.map(build_robot, items, chunksize=4))
     elif jobs == 1 or len(items) < 4:
-        built = [_build_one(item) for item in items]
+        built = [build_robot(item) for item in items]
     else:
         with worker_pool(jobs) as tmp_pool:
-            built = list(tmp_pool.map(_build_one, items, chunksize=4))
+            built = list(tmp_pool.map(build_robot, items, chunksize=4))
     for rec, b in zip(records, built):
         rec["rules"] = rec["rules"] + b.pop("rules")
         rec.update(b)

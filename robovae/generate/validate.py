@@ -15,8 +15,12 @@ A robot is ``valid`` when all of these hold (SPEC §4, validity):
    ``m g max(h, 1 m) + 1 J`` (total mass ``m``, robot height ``h``): a robot that only falls
    or collapses stays far below it, a numerically exploding one does not.
 
-The first failing check gives the reason. :func:`validate_many` runs robots in worker
-processes.
+The first failing check gives the reason. The simulation runs in one ``mujoco.rollout`` call
+(no Python per step; the kinetic energy of each step comes from an ``e_kinetic`` sensor added
+to the model); a robot that fails is replayed one ``mj_step`` at a time, the same trajectory,
+for the exact step and reason. :func:`check_robot` also returns the spec and compiled model,
+so that the quality measures need not load the file again. :func:`validate_many` runs robots
+in worker processes.
 """
 
 from __future__ import annotations
@@ -27,11 +31,14 @@ from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
+from mujoco import rollout
 
 from robovae.data.loading import capture_mujoco_warnings, drop_missing_assets
+from robovae.evaluate.quality.stage import FLOOR
 
 _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_BADQACC: "bad qacc",
@@ -41,6 +48,8 @@ _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_CONTACTFULL: "contact buffer full",
     mujoco.mjtWarning.mjWARN_CNSTRFULL: "constraint buffer full",
 }
+_KINETIC = "robovae_kinetic_energy"
+_NO_SENSORS = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 REASONS = ("valid", "compile", "degenerate", "self_penetration", "nan_inf", "mujoco_warning",
            "energy_blowup")
 
@@ -72,20 +81,120 @@ class Validation:
         return asdict(self)
 
 
-def _with_floor(spec: mujoco.MjSpec) -> mujoco.MjSpec:
-    world = spec.worldbody
-    if not any(g.type == mujoco.mjtGeom.mjGEOM_PLANE for g in world.geoms):
-        floor = world.add_geom()
-        floor.name = "robovae_floor"
-        floor.type = mujoco.mjtGeom.mjGEOM_PLANE
-        floor.size = [0, 0, 0.05]
-    return spec
-
-
-def _compile(path: Path) -> mujoco.MjModel:
+def _compile(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjsGeom | None, mujoco.MjModel]:
+    """The robot's spec with a floor plane (:data:`FLOOR` added at ``z = 0`` when the world has
+    no plane; that geom, else None) and a kinetic-energy sensor (mujoco.rollout gives every
+    step's sensor data), and its compiled model."""
     spec = mujoco.MjSpec.from_file(str(path))
     drop_missing_assets(spec)
-    return _with_floor(spec).compile()
+    spec.add_sensor(name=_KINETIC, type=mujoco.mjtSensor.mjSENS_E_KINETIC)
+    floor = None
+    if not any(g.type == mujoco.mjtGeom.mjGEOM_PLANE for g in spec.worldbody.geoms):
+        floor = spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                        size=[0, 0, 0.05])
+    return spec, floor, spec.compile()
+
+
+def _step_by_step(path: Path, model: mujoco.MjModel, steps: int, scale: float,
+                  energy_factor: float) -> Validation:
+    """Checks 3-5, one ``mj_step`` at a time from ``qpos0``: the exact step and reason of a
+    failure."""
+    fail = lambda reason, detail, **kw: Validation(str(path), False, reason,  # noqa: E731
+                                                    detail, **kw)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    max_kin = 0.0
+    for k in range(steps):
+        mujoco.mj_step(model, data)
+        for w, name in _BAD_WARNINGS.items():
+            if data.warning[w].number:
+                return fail("mujoco_warning", f"MuJoCo warning '{name}' at step {k}",
+                            steps=k + 1, max_kinetic=max_kin, energy_scale=scale)
+        if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
+            return fail("nan_inf", f"non-finite state at step {k}", steps=k + 1,
+                        max_kinetic=max_kin, energy_scale=scale)
+        max_kin = max(max_kin, float(data.energy[1]))
+        if max_kin > energy_factor * scale:
+            return fail("energy_blowup", f"kinetic energy {max_kin:.3g} J > "
+                        f"{energy_factor:g} x {scale:.3g} J at step {k}", steps=k + 1,
+                        max_kinetic=max_kin, energy_scale=scale)
+    return Validation(str(path), True, "valid", "", steps, max_kin, scale)
+
+
+def _rollout(path: Path, model: mujoco.MjModel, data: mujoco.MjData, steps: int,
+             scale: float, energy_factor: float) -> Validation | None:
+    """Checks 3-5 in one ``mujoco.rollout`` call from ``data``'s state (``mj_forward`` at
+    ``qpos0``, energy flag on): the valid result, or None when anything looks wrong (the caller
+    then replays the steps one by one for the exact failure; the trajectory is the same)."""
+    if data.warning.number.any() or model.opt.disableflags & _NO_SENSORS:
+        return None  # warned at qpos0 already, or no sensor data to read the energy from
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state0, spec)
+    states, sensors = rollout.rollout(model, data, state0[None], nstep=steps)
+    # the sensor reads data.energy before the step's forward pass renews it (with any
+    # integrator): the sensor of step k holds the energy of step k - 1, the data the last one
+    kinetic = sensors[0, 1:, model.sensor_adr[model.sensor(_KINETIC).id]]
+    max_kin = max(float(kinetic.max(initial=0.0)), float(data.energy[1]), 0.0)
+    if (data.warning.number.any() or not np.isfinite(states).all()
+            or not np.isfinite(max_kin) or max_kin > energy_factor * scale):
+        return None
+    return Validation(str(path), True, "valid", "", steps, max_kin, scale)
+
+
+class Checked(NamedTuple):
+    """Outcome of :func:`check_robot`: the validation, and the robot as it was checked (None
+    when the file did not compile)."""
+
+    validation: Validation
+    model: mujoco.MjModel | None  # compiled from spec
+    spec: mujoco.MjSpec | None  # the file's, with a floor and a kinetic-energy sensor
+    floor: mujoco.MjsGeom | None  # the floor plane added at z = 0 (None: the file's own)
+    data: mujoco.MjData | None = None  # model's, mj_forward at qpos0 (None: not simulated)
+
+
+def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float = 0.01,
+                energy_factor: float = 100.0) -> Checked:
+    """:func:`validate_robot`, and the robot as it was checked, so that the quality measures
+    need not load it again (:func:`robovae.evaluate.quality.stage.stage_compiled`): its spec
+    with a floor plane (its own, or :data:`FLOOR` added at ``z = 0``) and a kinetic-energy
+    sensor, the compiled model (flags as in the file) and its data at rest."""
+    path = Path(path)
+    fail = lambda reason, detail, **kw: Validation(str(path), False, reason,  # noqa: E731
+                                                    " ".join(str(detail).split()), **kw)
+    with capture_mujoco_warnings():
+        try:
+            spec, floor, model = _compile(path)
+        except Exception as e:
+            what = str(e).strip().splitlines()[0] if str(e).strip() else e
+            return Checked(fail("compile", what), None, None, None)
+        if not (model.jnt_type != mujoco.mjtJoint.mjJNT_FREE).any():
+            return Checked(fail("degenerate", f"{model.nbody - 1} bodies and no joint besides a "
+                                "free base: nothing moves"), model, spec, floor)
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        robot_geom = model.geom_bodyid != 0
+        pair, dist = data.contact.geom, data.contact.dist
+        deep = np.flatnonzero(robot_geom[pair].all(axis=1) & (dist < -penetration_tol))
+        if deep.size:
+            (g1, g2), d = pair[deep[0]], dist[deep[0]]
+            return Checked(fail("self_penetration", f"geoms {g1} and {g2} overlap by {-d:.3f} m "
+                                "at rest"), model, spec, floor)
+        mass = float(model.body_subtreemass[0])
+        height = float(np.ptp(data.geom_xpos[robot_geom, 2])) if robot_geom.any() else 0.0
+        scale = mass * 9.81 * max(height, 1.0) + 1.0
+        steps = max(1, math.ceil(duration / model.opt.timestep))
+        flags = model.opt.enableflags
+        model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+        try:
+            v = _rollout(path, model, data, steps, scale, energy_factor)
+            if v is None:
+                v = _step_by_step(path, model, steps, scale, energy_factor)
+        finally:
+            model.opt.enableflags = flags
+        mujoco.mj_resetData(model, data)
+        mujoco.mj_forward(model, data)
+    return Checked(v, model, spec, floor, data)
 
 
 def validate_robot(path: str | Path, duration: float = 1.0, penetration_tol: float = 0.01,
@@ -94,45 +203,7 @@ def validate_robot(path: str | Path, duration: float = 1.0, penetration_tol: flo
     of the module docstring: ``duration`` in s, ``penetration_tol`` in m, ``energy_factor``
     times the energy scale. A robot that fails (also one whose file does not load) is not an
     error: the first failed check is the result's ``reason``."""
-    path = Path(path)
-    fail = lambda reason, detail, **kw: Validation(str(path), False, reason,  # noqa: E731
-                                                    " ".join(str(detail).split()), **kw)
-    with capture_mujoco_warnings():
-        try:
-            model = _compile(path)
-        except Exception as e:
-            return fail("compile", str(e).strip().splitlines()[0] if str(e).strip() else e)
-        if not (model.jnt_type != mujoco.mjtJoint.mjJNT_FREE).any():
-            return fail("degenerate", f"{model.nbody - 1} bodies and no joint besides a free "
-                        "base: nothing moves")
-        model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
-        data = mujoco.MjData(model)
-        mujoco.mj_forward(model, data)
-        robot_geom = model.geom_bodyid != 0
-        for c in data.contact[: data.ncon]:
-            if robot_geom[c.geom1] and robot_geom[c.geom2] and c.dist < -penetration_tol:
-                return fail("self_penetration", f"geoms {c.geom1} and {c.geom2} overlap by "
-                            f"{-c.dist:.3f} m at rest")
-        mass = float(model.body_subtreemass[0])
-        height = float(np.ptp(data.geom_xpos[robot_geom, 2])) if robot_geom.any() else 0.0
-        scale = mass * 9.81 * max(height, 1.0) + 1.0
-        steps = max(1, math.ceil(duration / model.opt.timestep))
-        max_kin = 0.0
-        for k in range(steps):
-            mujoco.mj_step(model, data)
-            for w, name in _BAD_WARNINGS.items():
-                if data.warning[w].number:
-                    return fail("mujoco_warning", f"MuJoCo warning '{name}' at step {k}",
-                                steps=k + 1, max_kinetic=max_kin, energy_scale=scale)
-            if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
-                return fail("nan_inf", f"non-finite state at step {k}", steps=k + 1,
-                            max_kinetic=max_kin, energy_scale=scale)
-            max_kin = max(max_kin, float(data.energy[1]))
-            if max_kin > energy_factor * scale:
-                return fail("energy_blowup", f"kinetic energy {max_kin:.3g} J > "
-                            f"{energy_factor:g} x {scale:.3g} J at step {k}", steps=k + 1,
-                            max_kinetic=max_kin, energy_scale=scale)
-    return Validation(str(path), True, "valid", "", steps, max_kin, scale)
+    return check_robot(path, duration, penetration_tol, energy_factor).validation
 
 
 def _validate_kw(args: tuple[str, dict]) -> dict:

@@ -12,6 +12,8 @@ from robovae.cli import main
 from robovae.data.procedural import procedural_spec
 from robovae.design.optimize import METHODS, best_so_far, optimize
 from robovae.design.score import reach_score, score_robot, walk_score
+from robovae.envs.walk import walk_scene
+from robovae.evaluate.quality.locomotion import gait
 
 
 @pytest.fixture(scope="module")
@@ -28,6 +30,10 @@ def test_walk_score_is_deterministic_and_normalised(quadruped):
     assert a["score"] == pytest.approx(a["speed"] / a["extent"])
     # a robot that counts as fallen from the first sample has walked nothing
     assert walk_score(quadruped, trials=2, seconds=1.5, settle=0.5, max_tilt=0.0)["score"] == 0
+    # one gait scorer: the quality measure's search with the optimiser's budget
+    scene = walk_scene(quadruped)[1]
+    assert a["score"] == gait(scene.model, rollouts=2, seconds=1.5, settle=1 / 3,
+                              max_tilt=60.0).speed
 
 
 def test_scores_of_robots_that_cannot_do_the_task(tmp_path):

@@ -10,7 +10,9 @@ import pytest
 from robovae.data.procedural import ProceduralConfig, procedural_spec
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality import gait, gait_speed, stage, standing
-from robovae.evaluate.quality.stage import prepare, rest_pose
+from robovae.evaluate.quality.measure import measure
+from robovae.evaluate.quality.stage import prepare, rest_pose, stage_compiled
+from robovae.generate.validate import check_robot
 
 FAST = {"rollouts": 8, "seconds": 2.0}
 
@@ -84,6 +86,15 @@ def test_gait_speed_is_seeded_and_a_weak_robot_moves_less() -> None:
     assert gait_speed(procedural_spec(2, "quadruped"), **FAST) == strong.speed
 
 
+def test_a_gait_that_falls_stops_counting() -> None:
+    quad = procedural_spec(2, "quadruped")
+    free = gait(quad, **FAST)
+    assert gait(quad, max_tilt=180.0, **FAST).speed == free.speed  # never falls
+    # the root tilts a little from the first sample on: with a 0° bound it has always fallen
+    assert gait(quad, max_tilt=0.0, **FAST).speed == 0.0
+    assert 0.0 <= gait(quad, max_tilt=20.0, **FAST).speed <= free.speed
+
+
 def test_a_robot_without_actuators_does_not_move() -> None:
     r = gait(stick(), **FAST)
     assert r.speed == 0.0 and math.isnan(r.frequency)
@@ -110,3 +121,22 @@ def test_rest_pose_is_the_home_keyframe_within_joint_ranges(menagerie_dir) -> No
     spec.joints[1].limited = mujoco.mjtLimited.mjLIMITED_TRUE
     m = spec.compile()
     assert m.qpos0[7] == 0 and rest_pose(m)[7] == m.jnt_range[1, 0] > 0  # clipped into range
+
+
+def test_the_validators_model_gives_the_same_measures(tmp_path) -> None:
+    """robovae generate measures the model the validator compiled (floor at z = 0, moved to
+    the robot's lowest point): the same records as measuring the file from scratch."""
+    for k, spec in enumerate([procedural_spec(2, "quadruped"), procedural_spec(1, "humanoid")]):
+        spec.body(spec.bodies[1].name).pos[2] += 0.3  # floating above z = 0
+        path = tmp_path / f"robot{k}.xml"
+        path.write_text(spec.to_xml())
+        checked = check_robot(path)
+        assert checked.validation.valid and checked.floor is not None
+        st = stage_compiled(checked.model, checked.spec, checked.floor, checked.data)
+        assert st.floor_z == stage(path).floor_z > 0.2
+        fresh, reused = measure(path), measure(st)
+        same = [k for k in fresh if not k.startswith("t_") and k not in ("name", "path")]
+        assert "stands" in same and "error" not in same
+        assert {k: fresh[k] for k in same} == {k: reused[k] for k in same}
+        # the standing test simulated on the stage's data and left it at rest
+        assert st.data.time == 0 and (st.data.qpos == st.model.qpos0).all()

@@ -9,7 +9,7 @@ import pytest
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.evaluate.quality.measure import QUALITY_KEYS, measure, measure_many, robot_quality
-from robovae.evaluate.quality.populations import procedural_files, real_robot_files
+from robovae.evaluate.quality.populations import procedural_files, real_robot_files, written_files
 from robovae.evaluate.quality.report import (
     contact_sheets,
     format_quality,
@@ -85,3 +85,13 @@ def test_contact_sheets_one_png_per_population(tmp_path) -> None:
     paths = contact_sheets({"training corpus": rows, "empty": []}, tmp_path, columns=2)
     assert paths == [tmp_path / "quality_training_corpus.png"]
     assert Image.open(paths[0]).size == (2 * 240, 180)
+
+
+def test_written_files_are_robots_as_generate_writes_them(tmp_path) -> None:
+    files = written_files(3, tmp_path, zoo=False)
+    assert [f.parent.name for f in files] == ["robot_000000", "robot_000001", "robot_000002"]
+    again = written_files(3, tmp_path, zoo=False)  # reused, not written again
+    assert again == files and all(f.stat().st_mtime_ns == g.stat().st_mtime_ns
+                                  for f, g in zip(files, again))
+    rows = [robot_quality(f) for f in files]
+    assert all("error" not in r and r["floating"] for r in rows)

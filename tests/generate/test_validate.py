@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import mujoco
 import pytest
 
 from robovae.data.zoo import zoo_files
-from robovae.generate.validate import REASONS, validate_many, validate_robot
+from robovae.generate.validate import REASONS, check_robot, validate_many, validate_robot
 
 
 def _zoo(name: str) -> Path:
@@ -48,9 +49,12 @@ def test_self_penetration_at_rest(tmp_path):
     assert validate_robot(_write(tmp_path, "apart", apart)).valid
 
 
-def test_energy_blowup(tmp_path):
-    """Gravity 10^4 times Earth's: the fall gains far more energy than m g h allows."""
-    path = _write(tmp_path, "fast", BOX.format(z=2), '<option gravity="0 0 -1e5"/>')
+@pytest.mark.parametrize("flags", ["", '<flag sensor="disable"/>'])
+def test_energy_blowup(tmp_path, flags):
+    """Gravity 10^4 times Earth's: the fall gains far more energy than m g h allows (also when
+    the file turns sensors off)."""
+    path = _write(tmp_path, "fast", BOX.format(z=2),
+                  f'<option gravity="0 0 -1e5">{flags}</option>')
     v = validate_robot(path)
     assert v.reason == "energy_blowup" and v.max_kinetic > 100 * v.energy_scale
 
@@ -75,3 +79,22 @@ def test_validate_many_in_order_with_workers(tmp_path):
 def test_duration_sets_the_number_of_steps(tmp_path, duration):
     v = validate_robot(_write(tmp_path, "box", BOX.format(z=1)), duration=duration)
     assert v.steps == round(duration / 0.002)
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "RK4", "implicitfast"])
+def test_kinetic_energy_is_the_maximum_over_the_steps(tmp_path, integrator):
+    """max_kinetic is the largest kinetic energy of the ``mj_step`` loop (one call of
+    mujoco.rollout gives the same trajectory); check_robot returns the model it simulated, with
+    a floor plane when the file has none."""
+    path = _write(tmp_path, "box", BOX.format(z=1), f'<option integrator="{integrator}"/>')
+    v, model, _, floor, _ = check_robot(path)
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    energy = []
+    for _ in range(v.steps):
+        mujoco.mj_step(model, data)
+        energy.append(float(data.energy[1]))
+    assert v.valid and v.max_kinetic == max(energy) > 0
+    assert model.geom(floor.name).type == mujoco.mjtGeom.mjGEOM_PLANE
+    assert model.geom(floor.name).pos[2] == 0

@@ -1,9 +1,12 @@
 """Quality measures of robots: are they in one piece, paired, standing, moving, and how do they
 compare with a training corpus and real robots (docs/generation.md, "Quality").
 
-Every per-robot measure takes one robot (a file, a ``mujoco.MjSpec``, or a ``mujoco.MjModel``;
-the physical ones need a model with a floor, files and specs get one) and returns a small
-dataclass or a number; none changes the caller's model:
+Every per-robot measure takes one robot (a file, a ``mujoco.MjSpec``, a ``mujoco.MjModel`` or
+a :class:`~robovae.evaluate.quality.stage.Stage`; the physical ones need a model with a floor,
+files and specs get one) and returns a small dataclass or a number; none changes the caller's
+model. A :class:`~robovae.evaluate.quality.stage.Stage` is the robot compiled once for all of
+them (``robovae generate`` stages the model its validator compiled:
+:func:`~robovae.evaluate.quality.stage.stage_compiled`):
 
 - :func:`~robovae.evaluate.quality.standing.standing` → ``StandResult`` (``.stands``);
 - :func:`~robovae.evaluate.quality.locomotion.gait_speed` → float, extents/s
@@ -20,9 +23,10 @@ split-half reference, k-NN precision/recall) and :mod:`~robovae.evaluate.quality
 
 from robovae.evaluate.quality.attachment import AttachResult, attachment
 from robovae.evaluate.quality.locomotion import GaitResult, gait, gait_speed
-from robovae.evaluate.quality.stage import Stage, rest_pose, stage
+from robovae.evaluate.quality.stage import Stage, rest_pose, stage, stage_compiled
 from robovae.evaluate.quality.standing import StandResult, standing
 from robovae.evaluate.quality.symmetry import Anatomy, anatomy
 
 __all__ = ["Anatomy", "AttachResult", "GaitResult", "StandResult", "Stage", "anatomy",
-           "attachment", "gait", "gait_speed", "rest_pose", "stage", "standing"]
+           "attachment", "gait", "gait_speed", "rest_pose", "stage", "stage_compiled",
+           "standing"]

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 
 from robovae.data.mjcf import robot_root
-from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, compiled, extent
+from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled, extent
 
 __all__ = ["AttachResult", "attachment"]
 
@@ -73,27 +73,25 @@ def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, li
                  threshold: float) -> tuple[float, int]:
     """Deepest overlap (m) between geoms of non-adjacent bodies and the pairs deeper than
     ``threshold``; a bounding-sphere pre-test skips pairs that cannot touch."""
-    parent = model.body_parentid
-    flat = [g for gs in geoms.values() for g in gs]
-    body, pos, rb = model.geom_bodyid, data.geom_xpos, model.geom_rbound
+    flat = np.array([g for gs in geoms.values() for g in gs], dtype=int)
+    body = model.geom_bodyid[flat]
+    parent = model.body_parentid[body]
+    pos, rb = data.geom_xpos[flat], model.geom_rbound[flat]
+    gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (rb[:, None] + rb[None])
+    apart = ((body[:, None] == body[None]) | (parent[:, None] == body[None])
+             | (body[:, None] == parent[None]) | (gap > 0))
     deepest, pairs = 0.0, 0
-    for i, g1 in enumerate(flat):
-        b1 = int(body[g1])
-        for g2 in flat[i + 1:]:
-            b2 = int(body[g2])
-            if b1 == b2 or parent[b1] == b2 or parent[b2] == b1:
-                continue
-            if np.linalg.norm(pos[g1] - pos[g2]) > rb[g1] + rb[g2]:
-                continue
-            depth = -float(mujoco.mj_geomDistance(model, data, g1, g2, 0.0, None))
-            deepest = max(deepest, depth)
-            pairs += depth > threshold
+    for i, j in zip(*np.nonzero(np.triu(~apart, 1))):
+        depth = -float(mujoco.mj_geomDistance(model, data, int(flat[i]), int(flat[j]), 0.0,
+                                              None))
+        deepest = max(deepest, depth)
+        pairs += depth > threshold
     return deepest, pairs
 
 
 def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
                penetration: bool = True) -> AttachResult:
-    """Detached bodies and self-penetration of a robot file, spec or model at ``qpos0``
+    """Detached bodies and self-penetration of a robot file, spec, model or stage at ``qpos0``
     (module docstring; ``gap`` and ``tolerance`` are fractions of the extent; ``penetration``
     False skips the O(geoms²) overlap search).
 
@@ -101,10 +99,13 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
         RobotFileError: a file that does not load.
     """
     model = compiled(robot)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    root, _ = robot_root(model)
-    size = extent(model, data, root)
+    if isinstance(robot, Stage):
+        data, root, size = robot.data, robot.root, robot.extent
+    else:
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        root = robot_root(model)[0]
+        size = extent(model, data, root)
     geoms = _geoms_by_body(model, root)
     limit = gap * size
     out = AttachResult(0, 0, extent=size)

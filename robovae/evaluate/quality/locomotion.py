@@ -22,6 +22,13 @@ it: a robot without collision geoms) score 0 and count in ``GaitResult.unstable`
 :func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0. It
 is a random search: the number is a lower bound on what the body can do with such gaits,
 comparable between robots measured with the same budget and seed.
+
+With ``max_tilt`` (degrees; off by default), a gait **falls** at the first 10 ms sample where
+the root's up axis (the local direction that points up at rest) tilts more than ``max_tilt``
+from vertical: the displacement stops counting there (tumbling is not walking; nothing counts
+when it falls before the settling time) while the time still runs to the end, so falling early
+costs. The design optimiser's walk score is this search with its own budget (8 gaits of 3 s,
+falls at 60°: :func:`robovae.design.score.walk_score`).
 """
 
 from __future__ import annotations
@@ -36,7 +43,10 @@ from mujoco import rollout
 from robovae.data.loading import capture_mujoco_warnings
 from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
-__all__ = ["GaitResult", "gait", "gait_speed", "sinusoid_controls"]
+__all__ = ["FALL_SAMPLE_DT", "GaitResult", "gait", "gait_speed", "sinusoid_controls"]
+
+#: Seconds between the samples that look for a fall (``max_tilt``).
+FALL_SAMPLE_DT = 0.01
 
 
 @dataclass
@@ -74,10 +84,25 @@ def _root_pos(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root
     return data.xpos[root].copy()
 
 
+def _first_fall(model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray, root: int,
+                up_local: np.ndarray, cos_tilt: float) -> int | None:
+    """State index of the first 10 ms sample whose root up axis is tilted below ``cos_tilt``
+    (module docstring), None when the gait never falls."""
+    every = max(1, round(FALL_SAMPLE_DT / model.opt.timestep))
+    for k in range(every - 1, len(states), every):
+        data.qpos[:] = states[k, 1:1 + model.nq]
+        mujoco.mj_kinematics(model, data)
+        if (data.xmat[root].reshape(3, 3) @ up_local)[2] < cos_tilt:
+            return k
+    return None
+
+
 def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
          frequency: tuple[float, float] = (0.5, 3.0), settle: float = 0.25,
-         max_steps: int = 2_000) -> GaitResult:
-    """Random search over open-loop sinusoidal gaits (module docstring).
+         max_steps: int = 2_000, max_tilt: float | None = None) -> GaitResult:
+    """Random search over ``rollouts`` open-loop sinusoidal gaits of ``seconds`` each (module
+    docstring): the budget. ``settle``: the share of each rollout before the distance counts;
+    ``max_tilt``: degrees past which a gait has fallen (None: falls are not checked).
 
     ``max_steps`` caps the steps per rollout (a robot with a tiny time step is driven for less
     than ``seconds``; ``GaitResult.seconds`` says how long and the speed uses it).
@@ -101,6 +126,8 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     data = mujoco.MjData(model)
     data.qpos[:] = rest_pose(model)
     mujoco.mj_forward(model, data)
+    up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
+    cos_tilt = math.cos(math.radians(max_tilt)) if max_tilt is not None else None
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state0, spec)
@@ -115,11 +142,17 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
         if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
             bad += 1
             continue
-        start = _root_pos(model, data, s[first, 1:1 + model.nq], root)
-        end = _root_pos(model, data, s[-1, 1:1 + model.nq], root)
-        if end[2] < st.floor_z - st.extent:  # fell through the floor (no collision geoms)
-            bad += 1
+        if _root_pos(model, data, s[-1, 1:1 + model.nq], root)[2] < st.floor_z - st.extent:
+            bad += 1  # fell through the floor (no collision geoms)
             continue
+        last = len(s) - 1
+        if cos_tilt is not None:
+            fell = _first_fall(model, data, s, root, up_local, cos_tilt)
+            last = last if fell is None else fell
+        if last <= first:  # fell before the distance counts
+            continue
+        start = _root_pos(model, data, s[first, 1:1 + model.nq], root)
+        end = _root_pos(model, data, s[last, 1:1 + model.nq], root)
         speeds[r] = float(np.linalg.norm((end - start)[:2])) / span
     best = int(np.argmax(speeds))
     return GaitResult(float(speeds[best]) / st.extent, float(speeds[best]), st.extent,

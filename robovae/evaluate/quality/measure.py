@@ -2,7 +2,9 @@
 processes with a progress bar.
 
 :func:`measure` loads and compiles the robot once (a floor is added when it has none,
-:func:`~robovae.evaluate.quality.stage.prepare`) and runs on that model:
+:func:`~robovae.evaluate.quality.stage.prepare`), or takes it compiled (a model with a floor, or
+a :class:`~robovae.evaluate.quality.stage.Stage`: ``robovae generate`` reuses the validator's
+model, :func:`~robovae.evaluate.quality.stage.stage_compiled`), and runs on that model:
 
 - ``bodies``, ``dof``, ``mass``, ``limbs``: counts
   (:func:`~robovae.evaluate.quality.symmetry.anatomy`); ``pairs``, ``symmetric``,
@@ -37,7 +39,7 @@ from robovae.data.mjcf import model_to_graph
 from robovae.evaluate.descriptors import VECTOR_DESCRIPTORS, descriptors
 from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.quality.locomotion import gait
-from robovae.evaluate.quality.stage import prepare
+from robovae.evaluate.quality.stage import Robot, Stage, prepare, stage
 from robovae.evaluate.quality.standing import standing
 from robovae.evaluate.quality.symmetry import anatomy
 
@@ -56,43 +58,47 @@ def _timed(out: dict, key: str, fn, *args, **kwargs):
         out[f"t_{key}"] = time.perf_counter() - t
 
 
-def measure(robot: str | os.PathLike | mujoco.MjSpec, locomotion: bool = False,
-            describe: bool = True, gait_kw: dict | None = None,
-            stand_kw: dict | None = None, name: str | None = None) -> dict:
-    """The quality record of one robot file or spec (module docstring). ``gait_kw`` and
-    ``stand_kw`` are passed to :func:`~robovae.evaluate.quality.locomotion.gait` and
-    :func:`~robovae.evaluate.quality.standing.standing`; ``name`` defaults to the spec's
-    model name or the file stem (the folder for ``robot_<i>/robot.xml``)."""
+def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
+            gait_kw: dict | None = None, stand_kw: dict | None = None,
+            name: str | None = None) -> dict:
+    """The quality record of one robot file, spec, model with a floor or stage (module
+    docstring). ``gait_kw`` and ``stand_kw`` are passed to
+    :func:`~robovae.evaluate.quality.locomotion.gait` and
+    :func:`~robovae.evaluate.quality.standing.standing`; ``name`` defaults to the spec's model
+    name or the file stem (the folder for ``robot_<i>/robot.xml``), ``""`` for a model."""
+    compiled = isinstance(robot, (Stage, mujoco.MjModel))
     if name is None:
-        name = robot.modelname if isinstance(robot, mujoco.MjSpec) else Path(robot).stem
+        name = ("" if compiled else robot.modelname if isinstance(robot, mujoco.MjSpec)
+                else Path(robot).stem)
         if name == "robot":  # robovae generate's robot_<i>/robot.xml
             name = Path(robot).parent.name
-    out: dict = {"name": name, "path": None if isinstance(robot, mujoco.MjSpec) else str(robot)}
+    path = None if compiled or isinstance(robot, mujoco.MjSpec) else str(robot)
+    out: dict = {"name": name, "path": path}
     try:
-        _, st = _timed(out, "load", prepare, robot)
+        st = _timed(out, "load", stage if compiled else lambda r: prepare(r)[1], robot)
         model = st.model
-        a = _timed(out, "anatomy", anatomy, model)
+        a = _timed(out, "anatomy", anatomy, st)
         out.update(bodies=a.bodies, dof=a.dof, mass=a.mass, limbs=a.limbs, pairs=a.pairs,
                    symmetric=a.symmetric, one_limb=a.one_limb, extent=st.extent)
-        at = _timed(out, "attachment", attachment, model)
+        at = _timed(out, "attachment", attachment, st)
         out.update(judged=at.bodies, detached=at.detached, all_attached=at.all_attached,
                    detached_share=at.detached_share, penetration=at.penetration / at.extent,
                    self_penetrating=at.penetrating_pairs > 0)
-        s = _timed(out, "standing", standing, model, **(stand_kw or {}))
+        s = _timed(out, "standing", standing, st, **(stand_kw or {}))
         out.update(floating=s.floating, stands=s.stands, fell_at=s.fell_at,
                    stand_tilt=s.max_tilt)
         if describe:
             d = _timed(out, "descriptors", lambda: descriptors(model_to_graph(model)))
             out.update({f"d_{k}": d[k] for k in VECTOR_DESCRIPTORS})
         if locomotion:
-            g = _timed(out, "gait", gait, model, **(gait_kw or {}))
+            g = _timed(out, "gait", gait, st, **(gait_kw or {}))
             out.update(gait_speed=g.speed, gait_speed_m_s=g.speed_m_s)
     except Exception as e:  # noqa: BLE001 - one bad robot must not stop a population
         out["error"] = " ".join(f"{type(e).__name__}: {e}".split())
     return out
 
 
-def robot_quality(robot: str | os.PathLike | mujoco.MjSpec) -> dict:
+def robot_quality(robot: Robot) -> dict:
     """The compact quality record of one robot (:data:`QUALITY_KEYS` of :func:`measure`
     without descriptors or locomotion; ``error`` when it could not be measured)."""
     rec = measure(robot, describe=False)

@@ -6,7 +6,12 @@ height and size.
 - a file or spec gets a floor (a plane at the robot's lowest point at ``qpos0``) when it has
   none (:func:`prepare`, which also returns the spec with the floor);
 - a model is used as it is: it must already have a floor (an upward world plane or height
-  field), else :class:`~robovae.errors.RobovaeError` is raised.
+  field), else :class:`~robovae.errors.RobovaeError` is raised;
+- a :class:`Stage` is used as it is (its model copied when an integrator is asked for).
+
+:func:`stage_compiled` gives what :func:`prepare` would from the spec and model the validator
+compiled (:func:`robovae.generate.validate.check_robot`: floor at ``z = 0``), without loading the
+file again.
 
 **Size.** ``Stage.extent`` is the diagonal (m) of the axis-aligned box around the robot's geoms
 (world-frame corners of their bounding boxes) and body origins at ``qpos0``. MuJoCo's
@@ -35,14 +40,15 @@ FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 MOVING = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                 mujoco.mjtWarning.mjWARN_BADQVEL)
+_BAD = [int(w) for w in BAD_WARNINGS]
 
-Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel
-
-__all__ = ["REST_KEYFRAMES", "Robot", "Stage", "compiled", "extent", "prepare", "rest_pose",
-           "robot_points", "stage", "unstable"]
+__all__ = ["FLOOR", "REST_KEYFRAMES", "Robot", "Stage", "compiled", "extent", "prepare",
+           "rest_pose", "robot_points", "stage", "stage_compiled", "unstable"]
 
 #: Keyframe names taken as a robot's rest pose (Menagerie's robots define ``home``).
 REST_KEYFRAMES = ("home", "stand", "standing")
+#: Name of the floor plane added to a robot without one.
+FLOOR = "robovae_floor"
 
 
 @dataclass
@@ -54,6 +60,10 @@ class Stage:
     floor_z: float  # height of the floor under the robot, m
     extent: float  # diagonal of the robot's bounding box at qpos0, m
     free: bool  # the root body has a free joint
+    data: mujoco.MjData  # model's, mj_forward at qpos0 (a measure that steps it restores it)
+
+
+Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel | Stage
 
 
 def robot_points(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> np.ndarray:
@@ -76,12 +86,14 @@ def robot_points(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> np.nd
 
 
 def compiled(robot: Robot) -> mujoco.MjModel:
-    """The compiled model of a robot file, spec or model (a model is returned as it is; no
-    floor is added).
+    """The compiled model of a robot file, spec, model or stage (a model, or a stage's model,
+    is returned as it is; no floor is added).
 
     Raises:
         RobotFileError: a file that does not load.
     """
+    if isinstance(robot, Stage):
+        return robot.model
     if isinstance(robot, mujoco.MjModel):
         return robot
     if isinstance(robot, mujoco.MjSpec):
@@ -105,27 +117,36 @@ def _has_floor(model: mujoco.MjModel) -> bool:
 def _floor_height(model: mujoco.MjModel, data: mujoco.MjData, lowest: float) -> float:
     """Height of the highest upward-facing world plane not above the robot's lowest point
     (walls and ceilings are planes too); ``lowest`` when there is none (a height field)."""
-    z = [float(data.geom_xpos[g, 2]) for g in range(model.ngeom)
-         if model.geom_bodyid[g] == 0 and model.geom_type[g] == PLANE
-         and data.geom_xmat[g, 8] > 0.99 and data.geom_xpos[g, 2] <= lowest + 1e-3]
-    return max(z) if z else lowest
+    z = data.geom_xpos[(model.geom_bodyid == 0) & (model.geom_type == PLANE)
+                       & (data.geom_xmat[:, 8] > 0.99) & (data.geom_xpos[:, 2] <= lowest + 1e-3), 2]
+    return float(z.max()) if z.size else lowest
 
 
-def _stage_of(model: mujoco.MjModel, floor_z: float | None = None) -> Stage:
-    data = mujoco.MjData(model)
+_SIZES = ("nq", "nv", "nu", "na", "nbody", "njnt", "ngeom", "nsite", "ncam", "nlight",
+          "nmocap", "neq", "ntendon", "nsensordata", "nuserdata", "nplugin", "nbuffer",
+          "narena")
+
+
+def _stage_of(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> Stage:
+    """The stage of a model with a floor; ``data``: an MjData to reuse when it was made for a
+    model of the same sizes (allocating one costs more than the measures at rest)."""
+    if data is None or any(getattr(data.model, k) != getattr(model, k) for k in _SIZES):
+        data = mujoco.MjData(model)
+    else:
+        mujoco.mj_resetData(model, data)
     mujoco.mj_forward(model, data)
     root, _ = robot_root(model)
-    lowest = float(robot_points(model, data, root)[:, 2].min())
-    if floor_z is None:
-        floor_z = _floor_height(model, data, lowest)
+    pts = robot_points(model, data, root)
+    floor_z = _floor_height(model, data, float(pts[:, 2].min()))
+    size = max(float(np.linalg.norm(pts.max(0) - pts.min(0))), 1e-6)  # extent()
     free = bool(model.body_jntnum[root] >= 1 and model.jnt_type[model.body_jntadr[root]] == FREE)
-    return Stage(model, root, floor_z, extent(model, data, root), free)
+    return Stage(model, root, floor_z, size, free, data)
 
 
 def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = None
             ) -> tuple[mujoco.MjSpec, Stage]:
-    """The robot's spec (a copy) with a floor (added at its lowest point, named
-    ``robovae_floor``, when it has none) and its :class:`Stage`.
+    """The robot's spec (a copy) with a floor (added at its lowest point, named :data:`FLOOR`,
+    when it has none) and its :class:`Stage`.
 
     Raises:
         RobotFileError: the file does not load (one line).
@@ -141,7 +162,7 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
-        spec.worldbody.add_geom(name="robovae_floor", type=mujoco.mjtGeom.mjGEOM_PLANE,
+        spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
                                 size=[0, 0, 0.05], pos=[0.0, 0.0, lowest], condim=3)
     if integrator is not None:
         spec.option.integrator = integrator
@@ -151,13 +172,20 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
 
 
 def stage(robot: Robot, integrator: int | None = None) -> Stage:
-    """The :class:`Stage` of a robot file, spec or model (module docstring); a model is
-    copied, never changed.
+    """The :class:`Stage` of a robot file, spec, model or stage (module docstring); a model is
+    copied, never changed; a stage is returned as it is, or with a copy of its model using
+    ``integrator``.
 
     Raises:
         RobovaeError: a model without a floor.
         RobotFileError: a file that does not load.
     """
+    if isinstance(robot, Stage):
+        if integrator is None:
+            return robot
+        model = copy.copy(robot.model)
+        model.opt.integrator = integrator
+        return Stage(model, robot.root, robot.floor_z, robot.extent, robot.free, robot.data)
     if isinstance(robot, mujoco.MjModel):
         if not _has_floor(robot):
             raise RobovaeError("robovae: model has no floor (pass the robot's file or MjSpec, "
@@ -167,6 +195,34 @@ def stage(robot: Robot, integrator: int | None = None) -> Stage:
             model.opt.integrator = integrator
         return _stage_of(model)
     return prepare(robot, integrator)[1]
+
+
+def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.MjsGeom | None,
+                   data: mujoco.MjData | None = None) -> Stage:
+    """The :class:`Stage` that :func:`prepare` gives for a robot, from its spec already compiled
+    into ``model`` with a floor (the validator's,
+    :func:`robovae.generate.validate.check_robot`), without loading it again.
+
+    ``floor``: the plane added to a robot that had no floor, at any height. It is moved to the
+    robot's lowest point at ``qpos0``, where :func:`prepare` adds it, and the spec compiled
+    once more (``spec`` is changed; ``model`` is not). ``None``: the floor is the robot's own
+    and ``model`` is staged as it is (a copy). When other world geoms sit beside the added
+    plane (a height field: :func:`prepare` would add no floor), the plane is deleted and the
+    spec prepared from scratch. ``data``: ``model``'s data at ``qpos0`` (made when None).
+    """
+    if floor is None:
+        return stage(model)
+    if np.count_nonzero(model.geom_bodyid == 0) != 1:
+        spec.delete(floor)
+        return prepare(spec)[1]
+    if data is None:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+    lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
+    floor.pos = [0.0, 0.0, lowest]
+    floor.condim = 3  # as prepare adds it, whatever the file's default class says
+    with capture_mujoco_warnings():
+        return _stage_of(spec.compile(), data)
 
 
 def rest_pose(model: mujoco.MjModel) -> np.ndarray:
@@ -189,4 +245,4 @@ def rest_pose(model: mujoco.MjModel) -> np.ndarray:
 def unstable(data: mujoco.MjData) -> bool:
     """NaN/Inf state or a MuJoCo instability warning (bad qacc/qpos/qvel) since the last reset."""
     finite = np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()
-    return not finite or any(data.warning[w].number for w in BAD_WARNINGS)
+    return not finite or bool(data.warning.number[_BAD].any())

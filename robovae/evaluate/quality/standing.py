@@ -47,6 +47,7 @@ from robovae.data.loading import capture_mujoco_warnings
 from robovae.evaluate.quality.stage import (
     MOVING,
     Robot,
+    Stage,
     rest_pose,
     robot_points,
     stage,
@@ -162,7 +163,7 @@ def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
              limit_torques: bool = True, min_height: float = 0.5, max_tilt: float = 45.0,
              sample_dt: float = 0.02, max_steps: int = 10_000, chunk_seconds: float = 0.5,
              rest: float = 1e-3) -> StandResult:
-    """The standing test of a robot file, spec or model with a floor (module docstring).
+    """The standing test of a robot file, spec, model with a floor or stage (module docstring).
 
     ``max_steps`` caps the physics steps: a robot with a tiny time step is tested for less than
     ``seconds`` (``StandResult.seconds`` says how long). The simulation runs in rollouts of
@@ -175,10 +176,25 @@ def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
     st = stage(robot, integrator=mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
     if not st.free:
         return StandResult(floating=False)
-    model, root = st.model, st.root
+    model = st.model
     pose = rest_pose(model)
     ctrl, limited = hold_at_rest(model, st.extent, stiffness, limit_torques, pose)
-    data = mujoco.MjData(model)
+    data = st.data  # the stage's (allocating one costs more than a chunk): reset, then restored
+    try:
+        return _hold(model, data, st, pose, ctrl, limited, seconds, min_height, max_tilt,
+                     sample_dt, max_steps, chunk_seconds, rest)
+    finally:
+        if isinstance(robot, Stage):  # the caller's stage is left at rest
+            mujoco.mj_resetData(robot.model, data)
+            mujoco.mj_forward(robot.model, data)
+
+
+def _hold(model: mujoco.MjModel, data: mujoco.MjData, st: Stage, pose: np.ndarray,
+          ctrl: np.ndarray, limited: int, seconds: float, min_height: float, max_tilt: float,
+          sample_dt: float, max_steps: int, chunk_seconds: float, rest: float) -> StandResult:
+    """The simulation of :func:`standing`, on the held ``model`` from ``pose``."""
+    root = st.root
+    mujoco.mj_resetData(model, data)
     data.qpos[:] = pose
     mujoco.mj_forward(model, data)
     h0 = float(data.xpos[root, 2] - robot_points(model, data, root)[:, 2].min())

@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 from robovae.data.mjcf import robot_root
-from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, compiled
+from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled
 
 __all__ = ["Anatomy", "anatomy", "mirrored"]
 
@@ -88,15 +88,18 @@ def _subtree(kids: dict[int, list[int]], b: int) -> list[int]:
 
 
 def anatomy(robot: Robot, tolerance: float = 0.1) -> Anatomy:
-    """Counts, limbs and mirrored limb pairs of a robot file, spec or model (module
+    """Counts, limbs and mirrored limb pairs of a robot file, spec, model or stage (module
     docstring).
 
     Raises:
         RobotFileError: a file that does not load.
     """
     model = compiled(robot)
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    if isinstance(robot, Stage):
+        data = robot.data
+    else:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
     root, _ = robot_root(model)
     kids: dict[int, list[int]] = {}
     for b in range(1, model.nbody):

@@ -1,0 +1,42 @@
+"""One generated robot's folder: write it, validate it, measure its quality — what a worker
+process of :mod:`robovae.generate.pipeline` does for each robot.
+
+Kept apart from the pipeline so that the worker processes import only the writer, the
+validator and the quality measures (not the model and its training stack): a worker starts
+about 1.5 s of CPU sooner.
+"""
+
+from __future__ import annotations
+
+from robovae.evaluate.quality.measure import robot_quality
+from robovae.evaluate.quality.stage import stage_compiled
+from robovae.generate.validate import check_robot
+from robovae.generate.writer import write_robot
+
+__all__ = ["build_robot"]
+
+
+def build_robot(item: tuple) -> dict:
+    """Write one robot folder, validate it and measure its quality: ``item`` is ``(graph,
+    folder, feature_set, name, scene, validate, quality)``. Returns the robot's part of its
+    manifest record (``rules``, ``counts``, ``valid``, ``reason``, ``detail``, ``quality``); a
+    graph the writer cannot write is a ``compile`` failure, never an exception.
+
+    The quality measures run on the model the validator compiled
+    (:func:`~robovae.evaluate.quality.stage.stage_compiled`): the file is parsed once.
+    """
+    graph, folder, feature_set, name, scene, validate, quality = item
+    try:
+        # the validator loads the file anyway; the caller syncs a batch's files at once
+        res = write_robot(graph, folder, feature_set, name=name, scene=scene,
+                          check=not validate, durable=False)
+    except Exception as e:  # the rules make every graph writable; never lose a whole batch
+        return {"rules": [], "counts": {}, "valid": False, "reason": "compile",
+                "detail": f"writer error: {' '.join(str(e).split())}"}
+    rec = {"rules": res.rules, "counts": res.counts}
+    if validate:
+        v, model, spec, floor, data = check_robot(res.robot_path)
+        rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
+        if v.valid and quality:  # attached, symmetric, standing ... (robovae.evaluate.quality)
+            rec["quality"] = robot_quality(stage_compiled(model, spec, floor, data))
+    return rec
