@@ -27,8 +27,13 @@ class TreeEncoder(nn.Module):
       message ``p -> c`` sums the message into ``p`` from its parent and the upward messages of
       all the *other* children of ``p``;
     - eq. 6: ``h_i = ReLU(W^e x_i^p + sum_k U^e m_ki)``;
-    - eq. 7: ``h_G = sum of h_i over the leaves`` (a one-node tree's root is its leaf);
-    - ``mu = Linear(h_G)``, ``logvar = Linear(h_G)`` (``log sigma^2``, unclamped).
+    - eq. 7, as a mean: ``h_G = mean of h_i over the leaves`` (a one-node tree's root is its
+      leaf). The paper sums; a sum grows with the leaf count, and a zoo robot of 200 leaves
+      got ``|mu|`` near 900, whose draws sent the node KL and the features to 1e9 and a run
+      to NaN;
+    - ``mu = Linear(h_G)``, ``logvar = Linear(h_G)`` (``log sigma^2``, soft-clamped to
+      ``(-10, 10)``: an unbounded head once drew a latent of ``e^15`` standard deviations and
+      took a whole run to NaN).
 
     **Node latents** (``node_latent_dim > 0``): every node also gets a posterior
     ``q(w_i | G) = N(mu^w(h_i), diag exp(logvar^w(h_i)))`` (log-variance soft-clamped to
@@ -90,7 +95,10 @@ class TreeEncoder(nn.Module):
         leaf = sched.leaf_rows
         h = self.node_states(x.index_select(0, leaf), inward.index_select(0, leaf))
         h_g = h.new_zeros(sched.num_graphs, h.shape[1]).index_add(0, sched.leaf_graph, h)
-        return _heads(h_g, self.mu, self.logvar)
+        leaves = torch.bincount(sched.leaf_graph, minlength=sched.num_graphs).clamp_min(1)
+        h_g = h_g / leaves[:, None].to(h_g.dtype)
+        mu, logvar = _heads(h_g, self.mu, self.logvar)
+        return mu, soft_clamp(logvar)
 
     def node_states(self, x: Tensor, inward: Tensor) -> Tensor:
         """eq. 6, ``h_i = ReLU(W^e x_i^p + U^e sum_k m_ki)``, for the rows given."""
@@ -121,7 +129,7 @@ def _heads(h: Tensor, mu: nn.Linear, logvar: nn.Linear) -> tuple[Tensor, Tensor]
 def encode_reference(encoder: TreeEncoder, data: Data) -> tuple[Tensor, Tensor]:
     """Naive per-tree encoder (a Python loop over directed edges), for tests/benchmarks.
 
-    Computes eq. 4–7 literally: every message ``m_ij`` from the list of ``m_ki``,
+    Computes eq. 4–7 (the leaf mean) literally: every message ``m_ij`` from the list of ``m_ki``,
     ``k in N(i)\\j``, with :meth:`TreeGRUCell.forward_set`. Returns ``(mu, logvar)``, ``[1, z]``.
     """
     parent = data.parent.tolist()
@@ -143,10 +151,12 @@ def encode_reference(encoder: TreeEncoder, data: Data) -> tuple[Tensor, Tensor]:
         memo[(i, parent[i])] = msg(i, parent[i])
     for i in range(1, n):  # downward: the parent's own down message is done first
         memo[(parent[i], i)] = msg(parent[i], i)
-    h_g = xp.new_zeros(xp.shape[1])
+    h_g, leaves = xp.new_zeros(xp.shape[1]), 0
     for i in range(n):
         if any(parent[k] == i for k in nbrs[i]):
             continue  # not a leaf
         inc = sum((memo[(k, i)] for k in nbrs[i]), xp.new_zeros(xp.shape[1]))
         h_g = h_g + torch.relu(encoder.W_e(xp[i]) + encoder.U_e(inc))
-    return encoder.mu(h_g[None]), encoder.logvar(h_g[None])
+        leaves += 1
+    h_g = h_g / leaves
+    return encoder.mu(h_g[None]), soft_clamp(encoder.logvar(h_g[None]))

@@ -101,7 +101,7 @@ def test_loss_decreases() -> None:
     enc, dec = model()
     opt = torch.optim.Adam([*enc.parameters(), *dec.parameters()], lr=3e-3)
     first = None
-    for _ in range(50):
+    for _ in range(100):
         loss = losses(enc, dec, batch, beta=0.1, sample=True)["loss"]
         first = float(loss) if first is None else first
         opt.zero_grad()
