@@ -13,6 +13,7 @@ import json
 import logging
 import os
 from collections.abc import Callable, Sequence
+from functools import cache
 from pathlib import Path
 
 import torch
@@ -70,6 +71,21 @@ def summary_row(data: RobotData) -> dict:
             "features": int(data.x.shape[1]), "warnings": getattr(data, "warnings", "")}
 
 
+#: The modules that turn a robot file into a graph: their code is part of every cache key.
+_READER_MODULES = ("features.py", "graph.py", "loading.py", "mjcf.py", "robot_file.py")
+
+
+@cache
+def reader_digest() -> str:
+    """A digest of the code that reads robot files into graphs (:data:`_READER_MODULES`): a
+    cached dataset is a function of its sources *and* of how features are read (a changed or
+    added feature column must not reuse a cache built before it)."""
+    h = hashlib.sha1()
+    for name in _READER_MODULES:
+        h.update(name.encode() + b"\0" + (Path(__file__).parent / name).read_bytes())
+    return h.hexdigest()[:12]
+
+
 class RobotDataset(InMemoryDataset):
     """Robot graphs from MJCF/URDF files, Menagerie, the zoo or synthetic generators.
 
@@ -114,7 +130,8 @@ class RobotDataset(InMemoryDataset):
 
     def _fingerprint(self) -> str:
         h = hashlib.sha1()
-        h.update(json.dumps([self.sources, self.feature_set, robovae.__version__]).encode())
+        h.update(json.dumps([self.sources, self.feature_set, robovae.__version__,
+                             reader_digest()]).encode())
         for name, path in self._resolved.files:
             try:
                 st = path.stat()

@@ -224,6 +224,22 @@ def _joint_full() -> list[Feature]:
     ]
 
 
+def _link_box() -> list[Feature]:
+    """The link's collision shape as one box (``kinematic``: a tree without geom nodes that still
+    tells the writer where a foot or a head is)."""
+    return [
+        Feature("box_pos", "link", 3, -10.0, 10.0, min_std=0.005, unit="m", source="geom_aabb",
+                doc="Centre of the oriented box bounding the body's collision geoms (else all "
+                    "its geoms), body frame (zero if none)"),
+        Feature("box_quat", "link", 4, -1.0, 1.0, min_std=0.1, source="geom_aabb",
+                doc="Orientation of that box in the body frame (its axes: the principal axes "
+                    "of the geoms' corners, longest first; the body axes when those bound it "
+                    "as tightly)"),
+        Feature("box_half", "link", 3, 0.0, 10.0, "log", 1e-4, "m", "geom_aabb",
+                "Half-sizes of that box along its own axes, longest first (zero if none)"),
+    ]
+
+
 def _geom_full() -> list[Feature]:
     return [
         Feature("type", "geom", len(GEOM_TYPES), 0.0, 1.0, "categorical", source="geom_type",
@@ -246,11 +262,16 @@ def _geom_full() -> list[Feature]:
 def get_feature_set(name: str) -> FeatureSet:
     """The registered feature set called ``name``.
 
-    ``paper34`` (appendix E, link + joint), ``full`` (adds joint type, actuator and geom nodes)
-    or ``random<d>`` (the paper's synthetic trees: ``d`` features in [0, 1] on one node type).
+    ``paper34`` (appendix E, link + joint), ``kinematic`` (the same link/joint tree, plus the
+    joint's type, limit flag and actuator and the link's collision box), ``full`` (adds joint
+    type, actuator and geom nodes) or ``random<d>`` (the paper's synthetic trees: ``d`` features
+    in [0, 1] on one node type).
     """
     if name == "paper34":
         return FeatureSet("paper34", ("link", "joint"), tuple(_joint_paper() + _link_paper()))
+    if name == "kinematic":
+        return FeatureSet("kinematic", ("link", "joint"),
+                          tuple(_joint_full() + _link_paper() + _link_box()))
     if name == "full":
         return FeatureSet(
             "full", ("link", "joint", "geom"),
@@ -260,10 +281,10 @@ def get_feature_set(name: str) -> FeatureSet:
     if m and int(m.group(1)) > 0:
         feats = tuple(Feature(f"f{i}", "node", 1, 0.0, 1.0) for i in range(int(m.group(1))))
         return FeatureSet(name, ("node",), feats)
-    raise KeyError(f"unknown feature set {name!r} (known: paper34, full, random<d>)")
+    raise KeyError(f"unknown feature set {name!r} (known: paper34, kinematic, full, random<d>)")
 
 
-FEATURE_SETS = ("paper34", "full")
+FEATURE_SETS = ("paper34", "kinematic", "full")
 
 
 def feature_table(name: str) -> str:

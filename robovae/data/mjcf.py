@@ -86,6 +86,60 @@ def _geom_primitives(model: mujoco.MjModel, g: np.ndarray) -> tuple[np.ndarray, 
     return gtype, pos, quat, size
 
 
+#: The 8 corners of a unit box, for :func:`_link_boxes`.
+_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+#: An oriented box is kept only when it is this much smaller than the body-axis box.
+_OBB_GAIN = 0.95
+
+
+def _oriented_box(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(centre, quat, half-sizes)`` of a box bounding ``pts`` ``[n, 3]``: along their
+    principal axes (longest extent first, right-handed, ``w >= 0``), or along the frame's own
+    axes (identity) when that box is not :data:`_OBB_GAIN` smaller in volume."""
+    lo, hi = pts.min(0), pts.max(0)
+    rot = np.eye(3)
+    _, vecs = np.linalg.eigh(np.cov((pts - pts.mean(0)).T) + 1e-12 * np.eye(3))
+    cand = vecs[:, ::-1]
+    local = pts @ cand
+    c_lo, c_hi = local.min(0), local.max(0)
+    if np.prod(c_hi - c_lo) < _OBB_GAIN * np.prod(hi - lo):
+        rot, lo, hi = cand, c_lo, c_hi
+    order = np.argsort(-(hi - lo), kind="stable")
+    rot, lo, hi = rot[:, order], lo[order], hi[order]
+    if np.linalg.det(rot) < 0:
+        rot[:, 2] *= -1.0
+        lo[2], hi[2] = -hi[2], -lo[2]
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, rot.flatten())
+    quat *= 1.0 if quat[0] >= 0 else -1.0
+    return rot @ (0.5 * (lo + hi)), quat, 0.5 * (hi - lo)
+
+
+def _link_boxes(model: mujoco.MjModel, bodies: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(centre, quat, half-sizes)`` (``[len(bodies), 3 | 4 | 3]``) of the oriented box that
+    bounds each body's collision geoms (all its geoms when none collides; zeros, identity
+    without geoms), body frame (:func:`_oriented_box` of the corners of every geom's own
+    bounding box, ``geom_aabb``)."""
+    m = model
+    n = len(bodies)
+    center, half, quat = np.zeros((n, 3)), np.zeros((n, 3)), np.tile([1.0, 0, 0, 0], (n, 1))
+    colliding = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
+    for k, b in enumerate(bodies.tolist()):
+        g = np.arange(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
+        if g.size == 0:
+            continue
+        if colliding[g].any():
+            g = g[colliding[g]]
+        mats = np.zeros((g.size, 9))
+        for i, q in enumerate(m.geom_quat[g]):
+            mujoco.mju_quat2Mat(mats[i], q)
+        local = m.geom_aabb[g, None, :3] + _CORNERS[None] * m.geom_aabb[g, None, 3:]
+        pts = np.einsum("gij,gcj->gci", mats.reshape(-1, 3, 3), local) + m.geom_pos[g, None]
+        center[k], quat[k], half[k] = _oriented_box(pts.reshape(-1, 3))
+    return center, quat, half
+
+
 def _first_actuators(model: mujoco.MjModel, joints: np.ndarray) -> np.ndarray:
     """The first actuator driving each joint through a joint transmission, else -1."""
     first = np.full(model.njnt, -1, dtype=np.int64)
@@ -122,6 +176,11 @@ def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarra
     first = _first_geoms(m, b)
     has = first >= 0
     put(rows[has], "link.size", _geom_primitives(m, first[has])[3])
+    if "link.box_half" in keys:
+        center, quat, half = _link_boxes(m, b)
+        put(rows, "link.box_pos", center)
+        put(rows, "link.box_quat", quat)
+        put(rows, "link.box_half", half)
 
     rows = np.flatnonzero(types == JOINT)
     j = ids[rows]

@@ -9,7 +9,13 @@ the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT
 
 1. The **primitive**: the link's first geom, written from ``link.size`` verbatim (so that the
    reader gives the same ``link.size`` back): sphere ``(r)``, capsule ``(r, h)``, box
-   ``(x, y, z)``.
+   ``(x, y, z)``. In sets with a collision **box** (``link.box_pos``, ``link.box_quat``,
+   ``link.box_half``: centre ``c``, orientation ``q`` and half-sizes ``a >= b >= e`` along the
+   box's axes) the primitive fills that box instead, at ``c``: a capsule along the box's long
+   axis (radius ``(b + e) / 2``) when ``a >= 1.5 b``, a sphere (radius the mean half-size) when
+   ``a <= 1.2 e``, else the box itself, rotated by ``q``; its thickness is that radius, or
+   ``e`` for a box. A foot keeps its sole and a head
+   its volume, where ``link.size`` alone holds only the first geom.
 
    - root link (no link above it): at its origin, unrotated;
    - capsule / box: its axis (capsule axis, box z) points from ``a`` at the first child's
@@ -40,12 +46,15 @@ import numpy as np
 
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS
 
-__all__ = ["COVER_TOL", "MIN_BRIDGE", "GeomPlan", "LinkFrame", "link_geoms", "thickness"]
+__all__ = ["COVER_TOL", "MIN_BRIDGE", "MIN_RADIUS", "GeomPlan", "LinkFrame", "link_geoms",
+           "thickness"]
 
 #: A point farther than this times the thickness from the primitive's surface needs a bridge.
 COVER_TOL = 0.25
 #: A bridge shorter than this times its radius is a sphere.
 MIN_BRIDGE = 0.05
+#: Smallest radius of a capsule that fills a collision box (m): a flat box has no thickness.
+MIN_RADIUS = 1e-3
 
 
 @dataclass
@@ -70,6 +79,7 @@ class LinkFrame:
         ipos: its centre of mass.
         children: ``[(t_c, r_c)]``: every child link's anchor and thickness.
         root: no link above it.
+        box: ``(centre, quat, half-sizes)`` of its collision box, in sets that have one.
     """
 
     size: np.ndarray
@@ -77,6 +87,7 @@ class LinkFrame:
     ipos: np.ndarray
     children: list[tuple[np.ndarray, float]]
     root: bool
+    box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 def _n_size(size: np.ndarray) -> int:
@@ -86,8 +97,13 @@ def _n_size(size: np.ndarray) -> int:
     return k
 
 
-def thickness(size: np.ndarray) -> float:
-    """The radius a link's bridges take from its ``link.size`` (module docstring)."""
+def thickness(size: np.ndarray,
+              box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> float:
+    """The radius a link's bridges take from its ``link.size``, or from its collision box when
+    it has one (module docstring)."""
+    if box is not None and float(np.max(box[2])) > 0:
+        prim = _box_primitive(*box)
+        return float(prim.size[0]) if prim.type != "box" else float(np.min(prim.size))
     k = _n_size(size)
     if k == 0:
         return DEFAULT_GEOM_RADIUS
@@ -105,7 +121,26 @@ def _unit(v: np.ndarray) -> np.ndarray | None:
     return v / n if n > 1e-9 else None
 
 
+def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> GeomPlan:
+    """The primitive that fills a collision box (module docstring)."""
+    order = np.argsort(-half, kind="stable")
+    a, b, e = (float(half[k]) for k in order)
+    q = quat / (np.linalg.norm(quat) or 1.0)
+    if a >= 1.5 * b:
+        r = max(0.5 * (b + e), MIN_RADIUS)
+        axis = np.zeros(3)
+        mujoco.mju_rotVecQuat(axis, np.eye(3)[order[0]], q)
+        return GeomPlan("capsule", np.array([r, max(a - r, 1e-4), 0.0]), center.copy(),
+                        _quat_z_to(axis))
+    if a <= 1.2 * e:
+        return GeomPlan("sphere", np.array([(a + b + e) / 3.0, 0.0, 0.0]), center.copy(),
+                        np.array([1.0, 0.0, 0.0, 0.0]))
+    return GeomPlan("box", np.maximum(half, 1e-4), center.copy(), q)
+
+
 def _primitive(f: LinkFrame) -> GeomPlan:
+    if f.box is not None and float(np.max(f.box[2])) > 0:
+        return _box_primitive(*f.box)
     k = _n_size(f.size)
     ident = np.array([1.0, 0.0, 0.0, 0.0])
     if k == 0:
@@ -158,7 +193,7 @@ def _bridge(a: np.ndarray, b: np.ndarray, radius: float) -> GeomPlan:
 def link_geoms(f: LinkFrame) -> list[GeomPlan]:
     """The primitive of a link, then its bridges (module docstring)."""
     prim = _primitive(f)
-    r = thickness(f.size)
+    r = thickness(f.size, f.box)
     out = [prim]
     core = np.zeros(3) if f.root else f.anchor
     if not f.root and _gap(prim, f.anchor) > COVER_TOL * r:

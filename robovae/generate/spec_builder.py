@@ -220,20 +220,29 @@ class SpecBuilder:
         return np.array(self.vec(chain[0], "joint.pos")) if chain \
             and self.jtypes[chain[0]] != "free" else np.zeros(3)
 
-    def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
+    def _link_shape(self, i: int
+                    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+        """Link ``i``'s ``link.size`` (zeros when absent) and its collision box ``(centre, quat,
+        half-sizes)``, if the set has one."""
         size = np.maximum(self.get(i, "link.size"), 0.0) if self.has("link.size") \
             else np.zeros(3)
+        box = None
+        if self.has("link.box_half"):
+            box = (np.array(self.vec(i, "link.box_pos")), np.array(self.vec(i, "link.box_quat")),
+                   np.maximum(self.get(i, "link.box_half"), 0.0))
+        return size, box
+
+    def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
         children = []
         for c in kids:
             t = np.zeros(3)
             mujoco.mju_rotVecQuat(t, self._anchor(c),
                                   np.array(self.vec(c, "link.quat")))
             t += np.array(self.vec(c, "link.pos"))
-            c_size = np.maximum(self.get(c, "link.size"), 0.0) if self.has("link.size") \
-                else np.zeros(3)
-            children.append((t, thickness(c_size)))
+            children.append((t, thickness(*self._link_shape(c))))
+        size, box = self._link_shape(i)
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
-                         self.anc[i] < 0)
+                         self.anc[i] < 0, box)
 
     def _invented_geoms(self, body: mujoco.MjsBody, i: int, kids: list[int]) -> None:
         for k, plan in enumerate(link_geoms(self._link_frame(i, kids))):

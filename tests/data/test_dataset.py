@@ -36,6 +36,21 @@ def test_cache_is_reused_and_rebuilt_on_change(tmp_path, menagerie_dir):
     assert d.processed_paths != a.processed_paths
 
 
+def test_cache_key_holds_the_reader_code(tmp_path, menagerie_dir, monkeypatch):
+    """Another version of the code that reads files into graphs (features, mjcf, ...) does
+    not reuse a cache: a feature column added or read differently would come back stale."""
+    import robovae.data.dataset as dataset
+
+    src = tmp_path / "robots"
+    src.mkdir()
+    shutil.copy(menagerie_dir / "unitree_go2" / "go2.xml", src / "go2.xml")
+    a = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False)
+    assert len(dataset.reader_digest()) == 12
+    monkeypatch.setattr(dataset, "reader_digest", lambda: "another_code")
+    b = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False)
+    assert b.processed_paths != a.processed_paths
+
+
 def test_scene_and_robot_file_are_one_robot(tmp_path, menagerie_dir):
     """A Menagerie-style folder: scene.xml includes the robot file; one robot, named by it."""
     src = tmp_path / "unitree_go2"

@@ -69,3 +69,43 @@ def test_log_columns_are_the_heavy_tailed_ones():
     logs = {f.key for f in fs.features if f.transform == "log"}
     assert logs == {"joint.stiffness", "joint.armature", "joint.damping", "joint.frictionloss",
                     "link.mass", "link.inertia", "link.subtreemass", "link.size"}
+
+
+def test_kinematic_link_box_bounds_the_collision_geoms():
+    """``link.box_*``: the oriented box bounding a body's collision geoms, body frame. A tilted
+    capsule gets a tight box along its axis (not the loose body-axis box); a sphere and an
+    axis-aligned box keep the body axes; a visual-only geom does not count when a collision
+    geom exists; a body without geoms has zeros."""
+    import mujoco
+    import numpy as np
+
+    from robovae.data.mjcf import model_to_graph
+
+    xml = """<mujoco><worldbody><body name="root"><freejoint/>
+      <geom type="sphere" size="0.1"/>
+      <body name="tilted" pos="0 0 -0.1"><joint type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 -0.4" size="0.05"/>
+        <geom type="sphere" size="0.5" pos="3 0 0" contype="0" conaffinity="0"/></body>
+      <body name="foot" pos="0.2 0 -0.5"><joint type="hinge"/>
+        <geom type="box" size="0.1 0.05 0.02" pos="0.03 0 -0.02"/></body>
+      <body name="empty" pos="0 0.3 0"><joint type="hinge"/>
+        <inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/></body>
+    </body></worldbody></mujoco>"""
+    fs = get_feature_set("kinematic")
+    g = model_to_graph(mujoco.MjModel.from_xml_string(xml), fs)
+    links = (g.node_type == LINK).nonzero().flatten().tolist()
+    box = {k: g.x[links][:, fs.slice(f"link.box_{k}")].double().numpy()
+           for k in ("pos", "quat", "half")}
+    np.testing.assert_allclose(box["half"][0], [0.1, 0.1, 0.1], atol=1e-6)
+    np.testing.assert_allclose(box["quat"][0], [1, 0, 0, 0], atol=1e-6)
+    # the capsule: 0.5 m long between its end centres, radius 0.05, centred at (0.15, 0, -0.2)
+    np.testing.assert_allclose(box["pos"][1], [0.15, 0.0, -0.2], atol=1e-3)
+    np.testing.assert_allclose(box["half"][1], [0.3, 0.05, 0.05], atol=2e-3)
+    axis = np.zeros(3)
+    mujoco.mju_rotVecQuat(axis, np.array([1.0, 0, 0]), box["quat"][1])
+    np.testing.assert_allclose(np.abs(axis), [0.6, 0.0, 0.8], atol=1e-3)
+    np.testing.assert_allclose(box["pos"][2], [0.03, 0, -0.02], atol=1e-6)
+    np.testing.assert_allclose(box["half"][2], [0.1, 0.05, 0.02], atol=1e-6)
+    np.testing.assert_allclose(box["quat"][2], [1, 0, 0, 0], atol=1e-6)
+    assert not box["half"][3].any() and not box["pos"][3].any()
+    assert "1 bodies without geoms" in g.warnings

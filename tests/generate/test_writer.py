@@ -353,3 +353,32 @@ def test_rules_false_may_fail():
         graph_to_spec(g, fs, rules=False)
     spec, fired = graph_to_spec(g, fs)
     assert {"mass_positive", "inertia_positive"} <= set(fired)
+
+
+@pytest.mark.parametrize("seed", [0, 8, 5])  # quadruped, humanoid, hexapod
+def test_kinematic_round_trip_keeps_feet_and_motors(seed):
+    """The ``kinematic`` set rebuilds a procedural robot that still stands: every body attached,
+    each link's primitive fills its collision box (a humanoid's foot is a box, not the ankle
+    sphere its first geom is), and the motors keep their gears."""
+    from robovae.evaluate.quality.attachment import attachment
+    from robovae.evaluate.quality.measure import measure
+
+    model = procedural_spec(seed).compile()
+    g = model_to_graph(model, "kinematic")
+    out, fired = graph_to_spec(g, "kinematic")
+    back = out.compile()
+    assert set(fired) <= {"geom_bridge"}
+    assert attachment(back).all_attached
+    np.testing.assert_allclose(np.sort(back.actuator_gear[:, 0]),
+                               np.sort(model.actuator_gear[:, 0]), rtol=1e-4)
+    assert measure(out, describe=False, name=f"rt{seed}")["stands"]
+    if seed == 8:  # the humanoid: its foot's primitive spans the sole, not the ankle sphere
+        foot = model.body("left_leg5").id
+        sole = [k for k in range(model.ngeom) if model.geom_bodyid[k] == foot
+                and model.geom_type[k] == mujoco.mjtGeom.mjGEOM_BOX][0]
+        node = int(((g.node_type == LINK) & (g.mj_id == foot)).nonzero()[0, 0])
+        body = back.body(f"link{node}").id
+        first = next(k for k in range(back.ngeom) if back.geom_bodyid[k] == body)
+        assert back.geom_type[first] != mujoco.mjtGeom.mjGEOM_SPHERE
+        np.testing.assert_allclose(np.sort(back.geom_aabb[first, 3:])[-1],
+                                   model.geom_size[sole].max(), atol=0.005)

@@ -98,7 +98,7 @@ SPECIAL = [float("nan"), float("inf"), -float("inf"), 3e38, -3e38, 1e30, -1e30, 
            0.0, -0.0, 1.0, -1.0]
 
 
-@pytest.mark.parametrize("fs", FEATURE_SETS)
+@pytest.mark.parametrize("fs", [*FEATURE_SETS, "kinematic"])
 @settings(max_examples=50, **_SETTINGS)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 40),
        specials=st.lists(st.tuples(st.integers(0, 10**6), st.integers(0, 10**6),
