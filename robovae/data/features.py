@@ -224,6 +224,16 @@ def _joint_full() -> list[Feature]:
     ]
 
 
+def _joint_kinematic() -> list[Feature]:
+    """``full``'s joint columns with the actuator as one convention-free strength."""
+    return [
+        *_joint_full()[:-2],
+        Feature("torque", "joint", 1, 0.0, 1e5, "log", 1e-2, "N·m|N", "actuator_gear",
+                "Strength of the joint's actuators: the largest force they can apply "
+                "(robovae.data.actuators; 0 when none or unbounded)"),
+    ]
+
+
 def _link_box() -> list[Feature]:
     """The link's collision shape as one box (``kinematic``: a tree without geom nodes that still
     tells the writer where a foot or a head is)."""
@@ -263,15 +273,15 @@ def get_feature_set(name: str) -> FeatureSet:
     """The registered feature set called ``name``.
 
     ``paper34`` (appendix E, link + joint), ``kinematic`` (the same link/joint tree, plus the
-    joint's type, limit flag and actuator and the link's collision box), ``full`` (adds joint
-    type, actuator and geom nodes) or ``random<d>`` (the paper's synthetic trees: ``d`` features
-    in [0, 1] on one node type).
+    joint's type, limit flag and actuator strength and the link's collision box), ``full``
+    (adds joint type, actuator and geom nodes) or ``random<d>`` (the paper's synthetic trees:
+    ``d`` features in [0, 1] on one node type).
     """
     if name == "paper34":
         return FeatureSet("paper34", ("link", "joint"), tuple(_joint_paper() + _link_paper()))
     if name == "kinematic":
         return FeatureSet("kinematic", ("link", "joint"),
-                          tuple(_joint_full() + _link_paper() + _link_box()))
+                          tuple(_joint_kinematic() + _link_paper() + _link_box()))
     if name == "full":
         return FeatureSet(
             "full", ("link", "joint", "geom"),

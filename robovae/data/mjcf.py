@@ -31,6 +31,7 @@ import mujoco
 import numpy as np
 import torch
 
+from robovae.data.actuators import joint_strength
 from robovae.data.features import (
     GEOM,
     GEOM_TYPE_IDS,
@@ -195,6 +196,8 @@ def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarra
     on = act >= 0
     a = act[on]
     put(rows[on], "joint.actuated", np.ones(len(a)))
+    if "joint.torque" in keys:
+        put(rows, "joint.torque", joint_strength(m)[j])
     put(rows[on], "joint.gear", m.actuator_gear[a, 0])
     put(rows[on], "joint.ctrlrange", np.where(m.actuator_ctrllimited[a, None] != 0,
                                               m.actuator_ctrlrange[a], 0.0))

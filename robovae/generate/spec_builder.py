@@ -29,9 +29,10 @@ rounded as MJCF output writes them (:mod:`robovae.generate.mjcf_numbers`).
   (``geom_bridge``). The root link's primitive sits at its origin, unrotated.
 - **actuators**: one ``motor`` per non-free joint. ``actuators="auto"``: in sets with
   ``joint.actuated`` only the flagged joints, with their ``gear`` and ``ctrlrange``
-  (``(0, 0)`` = unlimited); elsewhere every non-free joint with :data:`DEFAULT_GEAR` and
-  :data:`DEFAULT_CTRLRANGE`. ``"all"``: every non-free joint (features when flagged, else the
-  defaults). ``"none"``: no actuators.
+  (``(0, 0)`` = unlimited), or, with ``joint.torque`` (``kinematic``), a gear of the joint's
+  strength and the control range ``(-1, 1)``; elsewhere every non-free joint with
+  :data:`DEFAULT_GEAR` and :data:`DEFAULT_CTRLRANGE`. ``"all"``: every non-free joint
+  (features when flagged, else the defaults). ``"none"``: no actuators.
 
 Structures no rule can repair (they change the topology; malformed decoded graphs only) are
 repaired here, and their names recorded (:data:`WRITER_FIXES`): ``empty_robot`` (no link node:
@@ -179,6 +180,8 @@ class SpecBuilder:
             return
         gear = float(self.get(j, "joint.gear")[0]) if flagged and self.has("joint.gear") \
             else DEFAULT_GEAR
+        if flagged and self.has("joint.torque") and self.get(j, "joint.torque")[0] > 0:
+            gear = float(self.get(j, "joint.torque")[0])  # a motor of that strength
         if flagged and self.has("joint.ctrlrange"):
             ctrl = self.vec(j, "joint.ctrlrange")
         else:

@@ -109,3 +109,29 @@ def test_kinematic_link_box_bounds_the_collision_geoms():
     np.testing.assert_allclose(box["quat"][2], [1, 0, 0, 0], atol=1e-6)
     assert not box["half"][3].any() and not box["pos"][3].any()
     assert "1 bodies without geoms" in g.warnings
+
+
+def test_joint_strength_is_the_same_whatever_the_convention():
+    """``joint.torque``: one number per joint for a motor written as gear x control range
+    either way round, a force-limited servo, and an unbounded servo (kp times half its range);
+    0 for a joint without an actuator."""
+    import mujoco
+
+    from robovae.data.actuators import joint_strength
+
+    xml = """<mujoco><compiler angle="radian"/><worldbody><body><freejoint/><geom size="0.1"/>
+      <body><joint name="a" range="-1 1"/><geom size="0.1"/></body>
+      <body><joint name="b" range="-1 1"/><geom size="0.1"/></body>
+      <body><joint name="c" range="-1 1"/><geom size="0.1"/></body>
+      <body><joint name="d" range="-0.5 1.5"/><geom size="0.1"/></body>
+      <body><joint name="e"/><geom size="0.1"/></body>
+    </body></worldbody><actuator>
+      <motor joint="a" gear="300" ctrlrange="-1 1"/>
+      <motor joint="b" gear="1" ctrlrange="-300 300"/>
+      <position joint="c" kp="1000" forcerange="-300 300"/>
+      <position joint="d" kp="300"/>
+    </actuator></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    s = joint_strength(model)
+    assert s[0] == 0.0 and s[5] == 0.0  # the free joint, an unactuated hinge
+    torch.testing.assert_close(torch.tensor(s[1:5]), torch.full((4,), 300.0, dtype=torch.float64))

@@ -1,0 +1,62 @@
+"""How strong each joint's actuators are, whatever convention the file uses.
+
+MJCF files express the same motor in several ways: ``gear="300" ctrlrange="-1 1"``,
+``gear="1" ctrlrange="-300 300"``, or a position servo ``kp="500"`` whose force is limited by
+``forcerange`` or not at all. The **strength** of a joint is the largest force (N·m for a hinge
+or ball, N for a slide) its actuators (joint transmission) can apply, summed over them:
+
+- motor-like (fixed gain, no bias): ``|gear · gain| · max|ctrlrange|`` when the control is
+  limited (``actrange`` for an integrator);
+- servo (fixed gain, affine bias): ``|gear| · kp · h`` with ``h`` the half-width of its control
+  range, else of the joint's range (the force it applies a range away from its target);
+- either is capped by ``|gear| · max|forcerange|`` when force-limited; an actuator bounded by
+  nothing counts 0 (unknown).
+
+``kinematic`` graphs carry it as ``joint.torque``, and the writer gives each actuated joint a
+motor of that gear with control range ``(-1, 1)``.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+__all__ = ["joint_strength"]
+
+_TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
+_GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
+_BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
+_BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
+_DYN_INTEGRATOR = int(mujoco.mjtDyn.mjDYN_INTEGRATOR)
+
+
+def _half(lo_hi: np.ndarray) -> float:
+    return 0.5 * float(abs(lo_hi[1] - lo_hi[0]))
+
+
+def joint_strength(model: mujoco.MjModel) -> np.ndarray:
+    """Strength of every joint ``[njnt]`` (module docstring; 0 without an actuator)."""
+    out = np.zeros(model.njnt)
+    for a in range(model.nu):
+        if model.actuator_trntype[a] != _TRN_JOINT:
+            continue
+        j = int(model.actuator_trnid[a, 0])
+        gear = abs(float(model.actuator_gear[a, 0]))
+        gain = abs(float(model.actuator_gainprm[a, 0]))
+        force = 0.0
+        if model.actuator_gaintype[a] == _GAIN_FIXED and model.actuator_biastype[a] == _BIAS_NONE:
+            if model.actuator_dyntype[a] == _DYN_INTEGRATOR:
+                if model.actuator_actlimited[a]:
+                    force = gear * gain * float(np.abs(model.actuator_actrange[a]).max())
+            elif model.actuator_ctrllimited[a]:
+                force = gear * gain * float(np.abs(model.actuator_ctrlrange[a]).max())
+        elif (model.actuator_gaintype[a] == _GAIN_FIXED
+              and model.actuator_biastype[a] == _BIAS_AFFINE):
+            span = _half(model.actuator_ctrlrange[a]) if model.actuator_ctrllimited[a] \
+                else _half(model.jnt_range[j]) if model.jnt_limited[j] else 0.0
+            force = gear * gain * span
+        if model.actuator_forcelimited[a]:
+            cap = gear * float(np.abs(model.actuator_forcerange[a]).max())
+            force = min(force, cap) if force > 0 else cap
+        out[j] += force
+    return out
