@@ -14,7 +14,9 @@ the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT
    box's axes) the primitive fills that box instead, at ``c``: a capsule along the box's long
    axis (radius ``(b + e) / 2``) when ``a >= 1.5 b``, a sphere (radius the mean half-size) when
    ``a <= 1.2 e``, else the box itself, rotated by ``q``; its thickness is that radius, or
-   ``e`` for a box. A foot keeps its sole and a head
+   ``e`` for a box. A capsule of a non-root link with a child link runs from the link's anchor
+   to its first child's anchor instead (a limb segment joins its two joints whatever the
+   decoded box's orientation says). A foot keeps its sole and a head
    its volume, where ``link.size`` alone holds only the first geom.
 
    - root link (no link above it): at its origin, unrotated;
@@ -140,7 +142,14 @@ def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> Ge
 
 def _primitive(f: LinkFrame) -> GeomPlan:
     if f.box is not None and float(np.max(f.box[2])) > 0:
-        return _box_primitive(*f.box)
+        prim = _box_primitive(*f.box)
+        if prim.type == "capsule" and not f.root and f.children:  # a limb segment: joined
+            u = f.children[0][0] - f.anchor
+            length = float(np.linalg.norm(u))
+            if length > 2.0 * prim.size[0]:
+                return GeomPlan("capsule", np.array([prim.size[0], 0.5 * length, 0.0]),
+                                f.anchor + 0.5 * u, _quat_z_to(u / length))
+        return prim
     k = _n_size(f.size)
     ident = np.array([1.0, 0.0, 0.0, 0.0])
     if k == 0:
