@@ -91,7 +91,7 @@ def main() -> None:
 
     source = f"procedural:n={args.n},seed=0"
     t = time.perf_counter()
-    ds = RobotDataset(args.root, [source], "kinematic")
+    ds = RobotDataset(args.root, [source], "kinematic", progress=False)
     build = time.perf_counter() - t
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -116,8 +116,9 @@ def main() -> None:
                          f"{len(ds) / wall:.0f}"])
     print(f"dataset {source}: {len(ds)} robots, loaded/built in {build:.1f} s; "
           f"load average {os.getloadavg()[0]:.1f}")
-    print(format_table(["run", "robots", "wall s (whole command)", "CPU s", "peak RSS GB",
-                        "summed RSS GB", "robots/s"], rows))
+    cols = ["run", "robots", "wall s (whole command)", "CPU s", "peak RSS GB", "summed RSS GB",
+            "robots/s"]
+    print(format_table([dict(zip(cols, r)) for r in rows], cols))
 
 
 if __name__ == "__main__":

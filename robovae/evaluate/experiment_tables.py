@@ -150,6 +150,56 @@ def loo_table(results: list[dict], variant: str = "default") -> str:
     return "\n".join(lines)
 
 
+def pretrained_table(results: list[dict], experiment: str, name: str) -> str:
+    """Markdown table of a pretrained model on the 17 Menagerie robots (``zeroshot`` or
+    ``finetune`` runs of model ``name``, :mod:`robovae.evaluate.pretrained`): per held-out robot,
+    from ``z`` alone — decoded node count, min(RA, RA_true), exact, FRE — then the full
+    channel's min(RA, RA_true) and what the latents cost (nats: ``KL_z`` and its tree part per
+    robot, ``KL_nodes`` per node); the last row the means over robots (± over seeds)."""
+    rs = [r for r in results if r.get("experiment") == experiment
+          and r.get("variant", r.get("name")) == name]
+    by: dict[str, list[tuple[dict, dict]]] = {}
+    for r in rs:
+        for z, f in zip(r["test_z"], r["test"]):
+            by.setdefault(z["name"], []).append((z, f))
+    lines = ["| robot | nodes | decoded nodes from z | min(RA, RA_true) from z | exact from z | "
+             "FRE from z | min(RA, RA_true) full | KL_z | KL_tree | KL_nodes per node |",
+             "|---" * 10 + "|"]
+
+    def mra(t: dict) -> float:
+        return min(t["ra"], t["ra_true"])
+
+    for n in MENAGERIE17:
+        ts = by.get(n, [])
+        if not ts:
+            continue
+        z, f = [t[0] for t in ts], [t[1] for t in ts]
+        lines.append(f"| {n} | {z[0]['n_true']} | {', '.join(str(t['n_pred']) for t in z)} | "
+                     f"{_ms([mra(t) for t in z])} | {_pct([float(t['exact']) for t in z])} | "
+                     f"{_ms([t['fre'] for t in z], '{:.2g}')} | {_ms([mra(t) for t in f])} | "
+                     f"{_ms([t['kl_z'] for t in z], '{:.0f}')} | "
+                     f"{_ms([t.get('kl_tree', math.nan) for t in z], '{:.0f}')} | "
+                     f"{_ms([t['kl_nodes'] / t['nodes'] for t in z], '{:.1f}')} |")
+    seeds = sorted({r.get("seed", 0) for r in rs})
+    groups = [[t for r in rs if r.get("seed", 0) == s for t in zip(r["test_z"], r["test"])]
+              for s in seeds]
+    if groups and groups[0]:
+        def mean(fn, side: int = 0) -> list[float]:
+            return [statistics.mean(fn(t[side]) for t in g) for g in groups]
+
+        exact = [sum(float(t[0]["exact"]) for t in g) for g in groups]
+        per_node = [sum(t[0]["kl_nodes"] for t in g) / sum(t[0]["nodes"] for t in g)
+                    for g in groups]
+        lines.append(
+            f"| **mean over robots** | | | {_ms(mean(mra))} | "
+            f"{_ms(exact, '{:.0f}')} of {len(groups[0])} | "
+            f"{_ms(mean(lambda t: t['fre']), '{:.2g}')} | {_ms(mean(mra, 1))} | "
+            f"{_ms(mean(lambda t: t['kl_z']), '{:.0f}')} | "
+            f"{_ms(mean(lambda t: t.get('kl_tree', math.nan)), '{:.0f}')} | "
+            f"{_ms(per_node, '{:.1f}')} |")
+    return "\n".join(lines)
+
+
 def _replace_block(text: str, key: str, body: str) -> str:
     start, end = f"<!-- auto:{key} -->", f"<!-- /auto:{key} -->"
     if start not in text:
@@ -172,5 +222,9 @@ def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     text = _replace_block(text, "experiments", experiments_table(results))
     text = _replace_block(text, "menagerie17", per_robot_table(results, "menagerie17"))
     text = _replace_block(text, "loo", loo_table(results))
+    for experiment in ("zeroshot", "finetune"):
+        for name in ("default", "large"):
+            text = _replace_block(text, f"{experiment}_{name}",
+                                  pretrained_table(results, experiment, name))
     doc.write_text(text)
     print(f"wrote {doc}")

@@ -30,6 +30,7 @@ from robovae.evaluate.experiment_runner import (  # noqa: F401  (the runner's pu
     DOCS,
     EXPERIMENTS,
     MENAGERIE17,
+    REPO,
     RUNS,
     Experiment,
     FitTimer,
@@ -47,6 +48,7 @@ from robovae.evaluate.experiment_tables import (  # noqa: F401  (the tables' pub
     per_robot_table,
     report,
 )
+from robovae.evaluate.pretrained import finetune_specs, zeroshot
 
 
 def _seeds(s: str) -> list[int]:
@@ -54,8 +56,8 @@ def _seeds(s: str) -> list[int]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m robovae.evaluate.experiments {run,loo,ablation,report,all}``: exit
-    code."""
+    """``python -m robovae.evaluate.experiments {run,loo,zeroshot,finetune,ablation,report,all}``:
+    exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--all":
         argv[0] = "all"
@@ -83,6 +85,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ab = sub.add_parser("ablation", parents=[common], help="the ablation variants")
     ab.add_argument("--only", default="", help="comma-separated variants")
     ab.add_argument("--loo", action="store_true", help="also the leave-one-out per variant")
+    zs = sub.add_parser("zeroshot", help="a pretrained checkpoint on the 17 unseen robots")
+    zs.add_argument("--ckpt", required=True)
+    zs.add_argument("--name", required=True, help="label of the model (default, large, ...)")
+    zs.add_argument("--menagerie", default=str(REPO.parent / "shared" / "menagerie"))
+    zs.add_argument("--root", default=str(RUNS), help="where runs are stored")
+    ft = sub.add_parser("finetune", parents=[common],
+                        help="fine-tune a pretrained checkpoint on 16 robots, test the 17th")
+    ft.add_argument("--ckpt", required=True)
+    ft.add_argument("--name", required=True, help="label of the model (default, large, ...)")
+    ft.add_argument("--robots", default=",".join(MENAGERIE17))
+    ft.add_argument("overrides", nargs="*", help="extra Lightning CLI arguments (after --)")
     rp = sub.add_parser("report", help="write docs/results.md tables and docs/img loss curves")
     rp.add_argument("--root", default=str(RUNS), help="where runs are stored")
     al = sub.add_parser("all", parents=[common], help="every experiment, LOO, ablation, report")
@@ -96,6 +109,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.cmd == "report":
         report(root=root)
         return 0
+    if args.cmd == "zeroshot":
+        r = zeroshot(args.ckpt, args.name, args.menagerie, root)
+        s = r["summary_z"]
+        print(f"[zeroshot/{args.name}] from z: RA {s['ra']:.4f} RA_true {s['ra_true']:.4f} "
+              f"exact {s['exact']:.3f} FRE {s['fre']:.3g}")
+        return 0
     redo = not args.redo
     ex = {"epochs": args.epochs, "threads": args.threads, "root": root}
     if args.cmd == "run":
@@ -106,6 +125,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         extra = [*ABLATIONS.get(args.variant, ("", ()))[1], *args.overrides]
         run_all(loo_specs(args.seeds, args.robots.split(","), args.variant, extra, **ex),
                  args.jobs, redo)
+    elif args.cmd == "finetune":
+        run_all(finetune_specs(args.ckpt, args.name, args.seeds, args.robots.split(","),
+                               args.overrides, **ex), args.jobs, redo)
     elif args.cmd == "ablation":
         names = args.only.split(",") if args.only else list(ABLATIONS)
         specs = []

@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
+import torch
 import yaml
 
 from robovae.evaluate import experiment_tables
@@ -121,3 +122,36 @@ def test_ablation_variants_are_valid_cli_overrides(variant, capsys):
     data = config["data"]
     assert (data["tree_surgery"] > 0) == (variant != "no_surgery")
     assert (data["feature_noise"] > 0) == (variant != "no_augment")
+
+
+def test_zeroshot_and_finetune_on_the_17(trained, tmp_path, menagerie_dir, cache_root):
+    """A checkpoint trained without the 17 Menagerie robots is scored on each of them from z
+    and full channel with its latent costs; one fine-tuning run starts from its weights (and
+    its normaliser), trains on the 16 others and scores the 17th; the report's table reads
+    both. A checkpoint trained on any of the 17 is refused for zero-shot."""
+    from robovae.evaluate.pretrained import finetune_specs, zeroshot
+
+    model, _, ckpt = trained
+    r = zeroshot(ckpt, "small", menagerie_dir, tmp_path, cache_root)
+    assert [t["name"] for t in r["test_z"]] == list(ex.MENAGERIE17)
+    assert all({"kl_z", "kl_tree", "kl_nodes", "nodes"} <= set(t) for t in r["test_z"])
+    saved = json.loads((tmp_path / "zeroshot" / "small" / "result.json").read_text())
+    assert [t["n_pred"] for t in saved["test_z"]] == [t["n_pred"] for t in r["test_z"]]
+    extra = [f"--data.root={cache_root}", f'--data.sources=["dir:{menagerie_dir}"]',
+             "--trainer.check_val_every_n_epoch=2", "--metrics.every_n_epochs=2"]
+    (spec,) = finetune_specs(ckpt, "small", [0], ["go2"], extra, epochs=2, root=tmp_path)
+    result = ex.run_one(spec)
+    assert sorted(result["train_names"]) == sorted(n for n in ex.MENAGERIE17 if n != "go2")
+    assert result["test"][0]["name"] == "go2" and result["hparams"]["hidden_dim"] == 32
+    tuned = load_model(spec.out / "checkpoints" / "last.ckpt")
+    assert torch.equal(tuned.normalizer.mean, model.normalizer.mean)  # the pretrained one
+    results = experiment_tables.load_results(tmp_path)
+    for kind in ("zeroshot", "finetune"):
+        table = experiment_tables.pretrained_table(results, kind, "small")
+        assert "**mean over robots**" in table and "go2" in table
+    trained_on = tmp_path / "go2.ckpt"
+    data = torch.load(ckpt, weights_only=True)
+    data["robovae_training_robots"] = [*data["robovae_training_robots"], {"name": "go2"}]
+    torch.save(data, trained_on)
+    with pytest.raises(ValueError, match="trained on \\['go2'\\]"):
+        zeroshot(trained_on, "leaky", menagerie_dir, tmp_path, cache_root)
