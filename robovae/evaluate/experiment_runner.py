@@ -61,9 +61,8 @@ EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
 #: model variants of the ablation in ``docs/results.md`` were measured at commit ``b6c3bdf``;
 #: their code is in git history.)
 ABLATIONS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "default": ("the configs: node latents with local heads (the node posterior reads the "
-                "node's type and child count), type-input decoder, feature augmentation "
-                "(shift 1.0, noise 0.5), tree surgery 0.5", ()),
+    "default": ("the configs: the tree from the tree latent z_T, node latents for the "
+                "features, feature augmentation (shift 1.0, noise 0.5), tree surgery 0.5", ()),
     "no_surgery": ("the configs without tree surgery", ("--data.tree_surgery=0",)),
     "no_augment": ("the configs without feature augmentation",
                    ("--data.feature_shift=0", "--data.feature_noise=0")),

@@ -35,11 +35,11 @@ def test_overfit_go2(tmp_path, menagerie_dir, cache_root):
     L.seed_everything(0)
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root), train_names=["go2"],
                          test_names=["go2"], val_is_train=True, batch_size=1)
-    model = RoboVAE(hidden_dim=64, beta=1e-4, lr=3e-3)
-    _trainer(tmp_path, 600, check_val_every_n_epoch=600).fit(model, dm)
+    model = RoboVAE(hidden_dim=128, beta=1e-4, lr=3e-3)
+    _trainer(tmp_path, 900, check_val_every_n_epoch=900).fit(model, dm)
     (res,) = score_split(model.eval(), dm.test_set)
     assert res.ra == 1.0 and res.exact
-    assert res.fre < 1e-4
+    assert res.fre < 1e-4, res.fre
 
 
 def test_checkpoint_alone_decodes_the_same_robot(trained):
