@@ -68,10 +68,14 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
     name or the file stem (the folder for ``robot_<i>/robot.xml``), ``""`` for a model."""
     compiled = isinstance(robot, (Stage, mujoco.MjModel))
     if name is None:
-        name = ("" if compiled else robot.modelname if isinstance(robot, mujoco.MjSpec)
-                else Path(robot).stem)
-        if name == "robot":  # robovae generate's robot_<i>/robot.xml
-            name = Path(robot).parent.name
+        if compiled:
+            name = ""
+        elif isinstance(robot, mujoco.MjSpec):
+            name = robot.modelname
+        else:
+            name = Path(robot).stem
+            if name == "robot":  # robovae generate's robot_<i>/robot.xml
+                name = Path(robot).parent.name
     path = None if compiled or isinstance(robot, mujoco.MjSpec) else str(robot)
     out: dict = {"name": name, "path": path}
     try:
