@@ -8,12 +8,15 @@ zoo written the way ``robovae generate`` writes a decoded robot,
 generator's own MJCF files) or a ``robovae generate`` folder (``--samples DIR``).
 
 1. Per robot, in this process, after ``--warmup`` robots, the CPU time (``time.process_time``)
-   of each stage as ``robovae generate`` runs it: ``validate`` (parse, compile with a floor,
-   1 s of simulation: :func:`~robovae.generate.validate.check_robot`), ``load`` (the
-   validator's floor moved to the robot's lowest point and the spec compiled once more:
-   :func:`~robovae.evaluate.quality.stage.stage_compiled`), ``anatomy`` (counts, limbs,
-   symmetry), ``attachment`` (detached bodies, self-penetration), ``standing`` (3 s PD-held),
-   ``descriptors`` (graph descriptors).
+   of each stage as ``robovae generate`` runs it. With ``--controls held`` (default):
+   ``validate`` (parse, compile with a floor, checks at rest, the floor moved to the robot's
+   lowest point and the spec compiled again, the hold, 1 s of held simulation:
+   :func:`~robovae.generate.validate.check_robot`), ``anatomy`` (counts, limbs, symmetry),
+   ``attachment`` (detached bodies, self-penetration), ``standing`` (the held simulation
+   continued to at most 3 s), ``descriptors`` (graph descriptors). With ``--controls zero``
+   (the validation before 2026-11-25): ``validate`` (1 s with zero controls), ``load``
+   (:func:`~robovae.evaluate.quality.stage.stage_compiled`), then the same measures, the
+   standing test simulating from the start.
 2. Validation and every measure but locomotion (``measure(describe=True)``) of every robot in
    ``--jobs`` worker processes (``spawn``): the workers' CPU time and the wall clock, less
    those of a separate run of the workers' start-up (imports and one robot each).
@@ -52,19 +55,29 @@ from robovae.generate.validate import check_robot
 STAGES = ("validate", "load", "anatomy", "attachment", "standing", "descriptors")
 
 
-def stage_times(path: str) -> dict[str, float]:
+def _staged(checked):
+    """The stage the measures run on, and the held run the standing test continues."""
+    if checked.stage is not None:
+        return checked.stage, checked.held
+    c = checked
+    return stage_compiled(c.model, c.spec, c.floor, c.data), None
+
+
+def stage_times(path: str, controls: str = "held") -> dict[str, float]:
     """CPU seconds of each stage of one robot (module docstring, 1.); the measures only for a
     valid robot."""
     out = {}
     t = time.process_time()
-    v, model, spec, floor, data = check_robot(path)
+    checked = check_robot(path, controls=controls)
     out["validate"] = time.process_time() - t
-    if not v.valid:
+    if not checked.validation.valid:
         return out
     t = time.process_time()
-    st = stage_compiled(model, spec, floor, data)
-    out["load"] = time.process_time() - t
-    for name, fn in (("anatomy", anatomy), ("attachment", attachment), ("standing", standing),
+    st, held = _staged(checked)
+    if held is None:
+        out["load"] = time.process_time() - t
+    for name, fn in (("anatomy", anatomy), ("attachment", attachment),
+                     ("standing", lambda s: standing(s, held=held)),
                      ("descriptors", lambda s: descriptors(model_to_graph(s.model)))):
         t = time.process_time()
         fn(st)
@@ -72,13 +85,15 @@ def stage_times(path: str) -> dict[str, float]:
     return out
 
 
-def validate_and_measure(path: str) -> bool:
+def validate_and_measure(item: tuple[str, str]) -> bool:
     """What a generation worker does for one robot file: validate it and, when valid, measure
     it on the validator's model (every measure but locomotion). Returns validity."""
-    v, model, spec, floor, data = check_robot(path)
-    if v.valid:
-        measure(stage_compiled(model, spec, floor, data), describe=True)
-    return v.valid
+    path, controls = item
+    checked = check_robot(path, controls=controls)
+    if checked.validation.valid:
+        st, held = _staged(checked)
+        measure(st, describe=True, held=held)
+    return checked.validation.valid
 
 
 def _children_cpu() -> float:
@@ -104,15 +119,19 @@ def main() -> None:
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--warmup", type=int, default=5, help="robots run before timing")
     p.add_argument("--gait", type=int, default=4, help="robots for the locomotion measure")
+    p.add_argument("--controls", choices=("held", "zero"), default="held",
+                   help="the validation's simulation (robovae.generate.validate)")
     args = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         files = _files(args, tmp)
         for f in files[:args.warmup]:
-            stage_times(f)
-        per = [stage_times(f) for f in files]
-        valid = [r for r in per if "load" in r]
+            stage_times(f, args.controls)
+        per = [stage_times(f, args.controls) for f in files]
+        valid = [r for r in per if "anatomy" in r]
         table = []
         for k in STAGES:
+            if k == "load" and args.controls == "held":
+                continue
             t = np.array([r[k] for r in (per if k == "validate" else valid)])
             table.append({"stage": k, "robots": len(t),
                           "CPU ms/robot": f"{1e3 * t.mean():.2f} ± {1e3 * t.std():.2f}"})
@@ -123,12 +142,13 @@ def main() -> None:
         ctx = multiprocessing.get_context("spawn")
         c0, w0 = _children_cpu(), time.perf_counter()
         with ProcessPoolExecutor(args.jobs, mp_context=ctx) as pool:
-            list(pool.map(validate_and_measure, files[:args.jobs]))
+            list(pool.map(validate_and_measure, [(f, args.controls) for f in files[:args.jobs]]))
         startup, startup_cpu = time.perf_counter() - w0, _children_cpu() - c0
         c0, w0 = _children_cpu(), time.perf_counter()
         with ProcessPoolExecutor(args.jobs, mp_context=ctx) as pool:
             chunk = max(1, min(16, len(files) // (4 * args.jobs)))
-            list(pool.map(validate_and_measure, files, chunksize=chunk))
+            list(pool.map(validate_and_measure, [(f, args.controls) for f in files],
+                          chunksize=chunk))
         wall = time.perf_counter() - w0 - startup
         workers_cpu = _children_cpu() - c0 - startup_cpu
         table.append({"stage": f"the same in {args.jobs} processes (less a separate run of the "
@@ -144,7 +164,8 @@ def main() -> None:
             table.append({"stage": "locomotion (64 x 4 s) with every other measure",
                           "robots": args.gait, "CPU ms/robot": f"{1e3 * gait:.0f}"})
     what = args.samples or args.robots
-    print(f"robots: {len(files)} ({what}), {len(valid)} valid; load average "
+    print(f"robots: {len(files)} ({what}), {len(valid)} valid, validation {args.controls}; "
+          f"load average "
           f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(format_table(table, ["stage", "robots", "CPU ms/robot"]))
     print(f"10,000 robots, validation + every measure but locomotion, {args.jobs} cores: "

@@ -18,14 +18,18 @@ __all__ = ["build_robot"]
 
 def build_robot(item: tuple) -> dict:
     """Write one robot folder, validate it and measure its quality: ``item`` is ``(graph,
-    folder, feature_set, name, scene, validate, quality)``. Returns the robot's part of its
-    manifest record (``rules``, ``counts``, ``valid``, ``reason``, ``detail``, ``quality``); a
-    graph the writer cannot write is a ``compile`` failure, never an exception.
+    folder, feature_set, name, scene, validate, quality[, controls])`` (``controls``: the
+    validation's simulation, ``"held"`` by default, see :mod:`robovae.generate.validate`).
+    Returns the robot's part of its manifest record (``rules``, ``counts``, ``valid``,
+    ``reason``, ``detail``, ``quality``); a graph the writer cannot write is a ``compile``
+    failure, never an exception.
 
     The quality measures run on the model the validator compiled
-    (:func:`~robovae.evaluate.quality.stage.stage_compiled`): the file is parsed once.
+    (:func:`~robovae.evaluate.quality.stage.stage_compiled`): the file is parsed once; with
+    held validation the standing test continues the validation's simulation.
     """
-    graph, folder, feature_set, name, scene, validate, quality = item
+    graph, folder, feature_set, name, scene, validate, quality = item[:7]
+    controls = item[7] if len(item) > 7 else "held"
     try:
         # the validator loads the file anyway; the caller syncs a batch's files at once
         res = write_robot(graph, folder, feature_set, name=name, scene=scene,
@@ -35,8 +39,13 @@ def build_robot(item: tuple) -> dict:
                 "detail": f"writer error: {' '.join(str(e).split())}"}
     rec = {"rules": res.rules, "counts": res.counts}
     if validate:
-        v, model, spec, floor, data = check_robot(res.robot_path)
+        checked = check_robot(res.robot_path, controls=controls)
+        v = checked.validation
         rec.update(valid=v.valid, reason=v.reason, detail=v.detail)
         if v.valid and quality:  # attached, symmetric, standing ... (robovae.evaluate.quality)
-            rec["quality"] = robot_quality(stage_compiled(model, spec, floor, data))
+            if checked.stage is not None:
+                rec["quality"] = robot_quality(checked.stage, checked.held)
+            else:
+                rec["quality"] = robot_quality(stage_compiled(
+                    checked.model, checked.spec, checked.floor, checked.data))
     return rec

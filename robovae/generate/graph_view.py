@@ -12,13 +12,15 @@ safe side.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 
 from robovae.data.features import Feature, FeatureSet, get_feature_set
 from robovae.data.graph import RobotData, children
 
-__all__ = ["GraphView", "as_feature_set", "ceil32", "floor32", "node_mask"]
+__all__ = ["GraphView", "as_feature_set", "ceil32", "floor32", "node_mask", "norm"]
 
 
 def as_feature_set(feature_set: str | FeatureSet) -> FeatureSet:
@@ -90,6 +92,12 @@ class GraphView:
         x = torch.from_numpy(self.x).to(torch.float32)
         out.x = torch.where(torch.from_numpy(self.mask), x, torch.zeros((), dtype=torch.float32))
         return out
+
+
+def norm(v: np.ndarray) -> float:
+    """``float(np.linalg.norm(v))`` of a 1-D float64 vector, the same value (``np.linalg.norm``
+    computes ``sqrt(v.dot(v))`` too) without its Python overhead."""
+    return math.sqrt(float(v.dot(v)))
 
 
 def ceil32(v: float) -> float:

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from robovae.generate.graph_view import norm
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS
 
 __all__ = ["COVER_TOL", "MIN_BRIDGE", "MIN_RADIUS", "GeomPlan", "LinkFrame", "link_geoms",
@@ -119,7 +120,7 @@ def _quat_z_to(u: np.ndarray) -> np.ndarray:
 
 
 def _unit(v: np.ndarray) -> np.ndarray | None:
-    n = float(np.linalg.norm(v))
+    n = norm(v)
     return v / n if n > 1e-9 else None
 
 
@@ -174,23 +175,30 @@ def _primitive(f: LinkFrame) -> GeomPlan:
     return GeomPlan(gtype, size, f.anchor + reach * u, _quat_z_to(u))
 
 
-def _gap(g: GeomPlan, p: np.ndarray) -> float:
-    """Distance (m) from point ``p`` to the surface of ``g`` (≤ 0 inside)."""
+def _frame(g: GeomPlan) -> np.ndarray:
+    """``R(g.quat)ᵀ``: world-to-geom rotation of ``g`` (for :func:`_gap`)."""
     mat = np.zeros(9)
     mujoco.mju_quat2Mat(mat, g.quat)
-    local = mat.reshape(3, 3).T @ (p - g.pos)
+    return mat.reshape(3, 3).T
+
+
+def _gap(g: GeomPlan, p: np.ndarray, rot_t: np.ndarray | None = None) -> float:
+    """Distance (m) from point ``p`` to the surface of ``g`` (≤ 0 inside); ``rot_t``:
+    :func:`_frame` of ``g`` when already computed."""
+    local = (_frame(g) if rot_t is None else rot_t) @ (p - g.pos)
     if g.type == "sphere":
-        return float(np.linalg.norm(local) - g.size[0])
+        return norm(local) - float(g.size[0])
     if g.type == "capsule":
-        local[2] -= np.clip(local[2], -g.size[1], g.size[1])
-        return float(np.linalg.norm(local) - g.size[0])
+        h = float(g.size[1])
+        local[2] -= min(max(float(local[2]), -h), h)
+        return norm(local) - float(g.size[0])
     out = np.abs(local) - g.size
-    return float(np.linalg.norm(np.maximum(out, 0.0)) + min(float(out.max()), 0.0))
+    return norm(np.maximum(out, 0.0)) + min(float(out.max()), 0.0)
 
 
 def _bridge(a: np.ndarray, b: np.ndarray, radius: float) -> GeomPlan:
     d = b - a
-    length = float(np.linalg.norm(d))
+    length = norm(d)
     if length <= 2.0 * radius:  # a sphere touching both ends
         r = max(0.5 * length, MIN_BRIDGE * radius)
         return GeomPlan("sphere", np.array([r, 0.0, 0.0]), 0.5 * (a + b),
@@ -205,9 +213,10 @@ def link_geoms(f: LinkFrame) -> list[GeomPlan]:
     r = thickness(f.size, f.box)
     out = [prim]
     core = np.zeros(3) if f.root else f.anchor
-    if not f.root and _gap(prim, f.anchor) > COVER_TOL * r:
+    rot_t = _frame(prim)
+    if not f.root and _gap(prim, f.anchor, rot_t) > COVER_TOL * r:
         out.append(_bridge(prim.pos, f.anchor, r))
     for t, r_child in f.children:
-        if _gap(prim, t) > COVER_TOL * r:
+        if _gap(prim, t, rot_t) > COVER_TOL * r:
             out.append(_bridge(core, t, min(r, r_child)))
     return out

@@ -32,7 +32,7 @@ import numpy as np
 
 from robovae.data.features import GEOM, GEOM_TYPES, JOINT, LINK
 from robovae.generate.bodies import link_structure, subtree, trunk
-from robovae.generate.graph_view import GraphView, ceil32
+from robovae.generate.graph_view import GraphView, ceil32, norm
 
 __all__ = ["DEFAULT_GEOM_RADIUS", "DEFAULT_LIMB_SEGMENT", "GEOM_SIZE_COMPONENTS",
            "MIN_LIMB_OFFSET", "MIN_SIZE", "SIZE_ZERO", "SIZE_ZERO_RATIO", "limb_length",
@@ -105,8 +105,8 @@ def limb_length(v: GraphView) -> None:
     anc, _ = link_structure(v.parent, v.types)
     cap = v.feature("link.pos").high
     for k, links in enumerate(limbs):
-        extent = max(max(float(np.linalg.norm(v.get(i, "link.pos"))),
-                         float(np.linalg.norm(v.get(i, "link.ipos")))) for i in links)
+        extent = max(max(norm(v.get(i, "link.pos")), norm(v.get(i, "link.ipos")))
+                     for i in links)
         if extent >= MIN_LIMB_OFFSET:
             continue
         angle = 2.0 * math.pi * k / len(limbs)

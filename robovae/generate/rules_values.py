@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from robovae.data.features import GEOM, JOINT, LINK
-from robovae.generate.graph_view import GraphView
+from robovae.generate.graph_view import GraphView, norm
 
 __all__ = ["QUATERNIONS", "UNIT_TOL", "UNIT_VECTORS", "axis_unit", "finite", "in_range",
            "one_hot", "unit_quat"]
@@ -96,7 +96,7 @@ def in_range(v: GraphView) -> None:
 
 def _unit(vec: np.ndarray, default: list[float]) -> np.ndarray | None:
     """The repaired vector, or None when it is already unit within tolerance."""
-    n = float(np.linalg.norm(vec))
+    n = norm(vec)
     if n < 1e-9:
         return np.asarray(default, dtype=float)
     if abs(n - 1.0) > UNIT_TOL:

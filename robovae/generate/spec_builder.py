@@ -61,7 +61,7 @@ from robovae.generate.bodies import joint_types, link_structure
 from robovae.generate.link_geometry import LinkFrame, link_geoms, thickness
 from robovae.generate.mjcf_numbers import (
     mjcf_round,
-    mjcf_round_rows,
+    mjcf_round_groups,
     mjcf_round_vector,
     rounded_inertia,
 )
@@ -110,10 +110,9 @@ class SpecBuilder:
     def __init__(self, data: RobotData, fs: FeatureSet, name: str, actuators: ActuatorMode,
                  self_collision: bool) -> None:
         self.fs, self.name = fs, name
-        x = data.x.detach().cpu().double().numpy().copy()
-        for f in fs.features:  # every value as MJCF output writes it, in one pass per feature
-            x[:, fs.slice(f.key)] = mjcf_round_rows(x[:, fs.slice(f.key)])
-        self.x = x
+        # every value as MJCF output writes it, feature by feature, in one pass
+        starts = np.array([fs.slice(f.key).start for f in fs.features])
+        self.x = mjcf_round_groups(data.x.detach().cpu().double().numpy(), starts)
         self.types = data.node_type.tolist()
         self.parent = data.parent.tolist()
         self.keys = {f.key for f in fs.features}

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from robovae.data.procedural import procedural_spec
+from robovae.data.procedural import parse_procedural, procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.evaluate.quality.measure import QUALITY_KEYS, measure, measure_many, robot_quality
 from robovae.evaluate.quality.populations import procedural_files, real_robot_files, written_files
@@ -37,6 +37,21 @@ def test_measure_records_every_measure_and_errors_in_one_line(tmp_path) -> None:
     compact = robot_quality(procedural_spec(0, "hexapod"))
     assert set(compact) == set(QUALITY_KEYS)
     assert measure(ZOO["gym_half_cheetah"], describe=False)["stands"] is None  # not floating
+
+
+def test_a_spec_named_robot_keeps_its_name(tmp_path) -> None:
+    """The writer names its specs "robot" by default: only a file ``robot_<i>/robot.xml`` is
+    named after its folder; a spec keeps its model name."""
+    from robovae.data.procedural import procedural_graphs
+    from robovae.generate.writer import graph_to_spec, write_robot
+
+    graph = procedural_graphs(parse_procedural("n=1"), jobs=1)[0]
+    spec, _ = graph_to_spec(graph)
+    assert spec.modelname == "robot"
+    rec = measure(spec, describe=False)
+    assert "error" not in rec and rec["name"] == "robot" and rec["path"] is None
+    path = write_robot(graph, tmp_path / "robot_000007", scene=False).robot_path
+    assert measure(path, describe=False)["name"] == "robot_000007"
 
 
 def test_summary_shares_leave_errors_out() -> None:

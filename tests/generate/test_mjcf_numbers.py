@@ -1,12 +1,17 @@
-"""Numbers as MJCF writes them: the vectorised row rounding agrees with the scalar one and is
-written back exactly."""
+"""Numbers as MJCF writes them: the vectorised row and group roundings agree with the scalar one
+and are written back exactly."""
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
 
-from robovae.generate.mjcf_numbers import mjcf_round_rows, mjcf_round_vector
+from robovae.generate.mjcf_numbers import (
+    mjcf_round,
+    mjcf_round_groups,
+    mjcf_round_rows,
+    mjcf_round_vector,
+)
 
 
 def test_rows_round_like_vectors_and_survive_mjcf_output():
@@ -28,3 +33,31 @@ def test_rows_round_like_vectors_and_survive_mjcf_output():
     spec.compile()
     model = mujoco.MjModel.from_xml_string(spec.to_xml())
     assert np.array_equal(model.body_pos[1:], finite)
+
+
+def test_groups_round_like_rows_group_by_group():
+    """The feature matrix rounded in one pass: each group of columns as its own rows."""
+    rng = np.random.default_rng(1)
+    a = rng.choice([-1, 1], (300, 9)) * 10.0 ** rng.uniform(-15, 8, (300, 9))
+    a[::5, 4] = 1e-14 * a[::5, 3]  # negligible within its group (3:6), not within the row
+    a[3, 2], a[4, 7], a[8, 0] = np.nan, -np.inf, 0.0
+    starts = np.array([0, 1, 3, 6])
+    got = mjcf_round_groups(a, starts)
+    for lo, hi in zip(starts, [*starts[1:], a.shape[1]]):
+        assert np.array_equal(got[:, lo:hi], mjcf_round_rows(a[:, lo:hi]), equal_nan=True)
+    assert mjcf_round_groups(np.zeros((0, 9)), starts).shape == (0, 9)
+
+
+def test_vector_rounding_of_lists_and_arrays_with_non_finite_values():
+    """The fast path (every component finite) and the general one agree with mjcf_round."""
+    rng = np.random.default_rng(2)
+    for _ in range(2000):
+        v = rng.standard_normal(4) * 10.0 ** rng.integers(-20, 20, 4)
+        if rng.random() < 0.3:
+            v[rng.integers(4)] = rng.choice([np.nan, np.inf, -np.inf, -0.0, 1e308])
+        finite = v[np.isfinite(v)]
+        big = np.abs(finite).max(initial=0.0)
+        want = [0.0 if np.isfinite(x) and abs(x) <= 1e-12 * big else mjcf_round(x) for x in v]
+        for got in (mjcf_round_vector(v), mjcf_round_vector(v.tolist())):
+            assert np.array_equal(got, want, equal_nan=True)
+            assert all(np.signbit(g) == np.signbit(w) for g, w in zip(got, want) if g == g)

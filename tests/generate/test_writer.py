@@ -270,6 +270,20 @@ def test_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
     assert list(out.iterdir()) == []  # neither a half-written robot.xml nor a temp file
 
 
+def test_a_stale_temporary_file_is_left_alone(tmp_path):
+    """A temporary file of the same name (a crashed writer with this pid) does not stop the
+    write: another name is used, and the stale file is not touched."""
+    out = tmp_path / "robot_2"
+    out.mkdir()
+    stale = out / f".robot.xml.{os.getpid()}.tmp"
+    stale.write_text("stale")
+    write_robot(quadruped("paper34"), out, "paper34")
+    write_robot(quadruped("paper34"), tmp_path / "fresh", "paper34")
+    assert (out / "robot.xml").read_bytes() == (tmp_path / "fresh" / "robot.xml").read_bytes()
+    assert stale.read_text() == "stale"
+    assert sorted(p.name for p in out.iterdir()) == sorted([stale.name, "robot.xml", "scene.xml"])
+
+
 def test_fast_write_gives_the_same_files(tmp_path):
     """Without the load check and the per-file fsync the files are the same; the scene (built
     once per process) names the robot's scene."""

@@ -40,7 +40,7 @@ from robovae.evaluate.descriptors import VECTOR_DESCRIPTORS, descriptors
 from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.quality.locomotion import gait
 from robovae.evaluate.quality.stage import Robot, Stage, prepare, stage
-from robovae.evaluate.quality.standing import standing
+from robovae.evaluate.quality.standing import HeldRun, standing
 from robovae.evaluate.quality.symmetry import anatomy
 
 __all__ = ["QUALITY_KEYS", "measure", "measure_many", "robot_quality"]
@@ -60,18 +60,25 @@ def _timed(out: dict, key: str, fn, *args, **kwargs):
 
 def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
             gait_kw: dict | None = None, stand_kw: dict | None = None,
-            name: str | None = None) -> dict:
+            name: str | None = None, held: HeldRun | None = None) -> dict:
     """The quality record of one robot file, spec, model with a floor or stage (module
     docstring). ``gait_kw`` and ``stand_kw`` are passed to
     :func:`~robovae.evaluate.quality.locomotion.gait` and
     :func:`~robovae.evaluate.quality.standing.standing`; ``name`` defaults to the spec's model
-    name or the file stem (the folder for ``robot_<i>/robot.xml``), ``""`` for a model."""
+    name or the file stem (the folder for ``robot_<i>/robot.xml``), ``""`` for a model.
+    ``held``: the standing test's simulation of ``robot`` (a stage) already begun by the
+    validator (:func:`robovae.generate.validate.check_robot`), continued instead of run again
+    (ignored when ``stand_kw`` changes the hold)."""
     compiled = isinstance(robot, (Stage, mujoco.MjModel))
     if name is None:
-        name = ("" if compiled else robot.modelname if isinstance(robot, mujoco.MjSpec)
-                else Path(robot).stem)
-        if name == "robot":  # robovae generate's robot_<i>/robot.xml
-            name = Path(robot).parent.name
+        if compiled:
+            name = ""
+        elif isinstance(robot, mujoco.MjSpec):
+            name = robot.modelname
+        else:
+            name = Path(robot).stem
+            if name == "robot":  # robovae generate's robot_<i>/robot.xml
+                name = Path(robot).parent.name
     path = None if compiled or isinstance(robot, mujoco.MjSpec) else str(robot)
     out: dict = {"name": name, "path": path}
     try:
@@ -84,7 +91,10 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
         out.update(judged=at.bodies, detached=at.detached, all_attached=at.all_attached,
                    detached_share=at.detached_share, penetration=at.penetration / at.extent,
                    self_penetrating=at.penetrating_pairs > 0)
-        s = _timed(out, "standing", standing, st, **(stand_kw or {}))
+        kw = dict(stand_kw or {})
+        if held is not None and held.stage is st and not {"stiffness", "limit_torques"} & set(kw):
+            kw["held"] = held
+        s = _timed(out, "standing", standing, st, **kw)
         out.update(floating=s.floating, stands=s.stands, fell_at=s.fell_at,
                    stand_tilt=s.max_tilt)
         if describe:
@@ -98,10 +108,11 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
     return out
 
 
-def robot_quality(robot: Robot) -> dict:
+def robot_quality(robot: Robot, held: HeldRun | None = None) -> dict:
     """The compact quality record of one robot (:data:`QUALITY_KEYS` of :func:`measure`
-    without descriptors or locomotion; ``error`` when it could not be measured)."""
-    rec = measure(robot, describe=False)
+    without descriptors or locomotion; ``error`` when it could not be measured); ``held`` as in
+    :func:`measure`."""
+    rec = measure(robot, describe=False, held=held)
     return {k: rec[k] for k in (*QUALITY_KEYS, "error") if k in rec}
 
 

@@ -60,7 +60,8 @@ _BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
 _BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
 _DYN_INTEGRATOR = int(mujoco.mjtDyn.mjDYN_INTEGRATOR)
 
-__all__ = ["StandResult", "hold_at_rest", "standing", "torque_limits"]
+__all__ = ["FIRST_SECONDS", "HeldRun", "StandResult", "first_steps", "hold_at_rest", "standing",
+           "torque_limits"]
 
 
 @dataclass
@@ -159,88 +160,173 @@ def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
     return ctrl, limited
 
 
+class HeldRun:
+    """The standing test's simulation of one staged robot, run in segments: a copy of the
+    stage's model with integrator ``implicitfast`` and every hinge/slide joint PD-held at the
+    rest pose (:func:`hold_at_rest`), started at rest, continued by :meth:`run`.
+
+    The validator (:func:`robovae.generate.validate.check_robot`) runs the first second and
+    :func:`standing` continues from where it stopped: the robot is simulated once. Segments
+    run but not yet judged by :func:`standing` wait in ``pending``.
+
+    Attributes:
+        stage: the robot on its floor (its ``data`` serves as the rollouts' scratch data).
+        model: the held copy of ``stage.model``.
+        pose: the rest pose (:func:`~robovae.evaluate.quality.stage.rest_pose`).
+        ctrl: the constant control that holds the robot.
+        limited: joints held with a torque limit.
+        state: full physics state after ``done`` steps.
+        warmstart: the solver's warm start after ``done`` steps (with ``state``, what makes a
+            run in segments the same trajectory, to the bit, as a run in one piece).
+        start, start_warmstart: the state and warm start at rest, before the first step.
+        done: steps simulated.
+        pending: ``[steps, state]`` arrays of the segments :func:`standing` has not judged.
+        h0: the root's height above the robot's lowest point at rest (m).
+        up_local: the root's local axis that points up at rest.
+    """
+
+    STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+    def __init__(self, st: Stage, stiffness: float = 10.0, limit_torques: bool = True) -> None:
+        self.stage = st
+        self.model = stage(st, integrator=mujoco.mjtIntegrator.mjINT_IMPLICITFAST).model
+        self.pose = rest_pose(self.model)
+        self.ctrl, self.limited = hold_at_rest(self.model, st.extent, stiffness, limit_torques,
+                                               self.pose)
+        model, data, root = self.model, st.data, st.root
+        mujoco.mj_resetData(model, data)
+        data.qpos[:] = self.pose
+        with capture_mujoco_warnings():
+            mujoco.mj_forward(model, data)
+        self.h0 = float(data.xpos[root, 2] - robot_points(model, data, root)[:, 2].min())
+        self.up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
+        self.state = np.empty(mujoco.mj_stateSize(model, self.STATE))
+        mujoco.mj_getState(model, data, self.state, self.STATE)
+        self.t0 = float(self.state[0])
+        self.warmstart = data.qacc_warmstart.copy()
+        self.start, self.start_warmstart = self.state.copy(), self.warmstart.copy()
+        self.done = 0
+        self.pending: list[np.ndarray] = []
+
+    def run(self, nstep: int) -> tuple[np.ndarray, np.ndarray]:
+        """Simulate ``nstep`` more steps in one ``mujoco.rollout`` call: the ``[nstep, state]``
+        states and ``[nstep, sensordata]`` sensor values (the segment is also queued in
+        ``pending``). MuJoCo's warnings accumulate in ``stage.data`` (reset when the run
+        started)."""
+        with capture_mujoco_warnings():
+            states, sensors = rollout.rollout(self.model, self.stage.data, self.state[None],
+                                              self.ctrl[None, None], nstep=nstep,
+                                              initial_warmstart=self.warmstart[None])
+        self.state = states[0, -1].copy()
+        self.warmstart = self.stage.data.qacc_warmstart.copy()
+        self.done += nstep
+        self.pending.append(states[0])
+        return states[0], sensors[0]
+
+    def rest(self) -> None:
+        """Leave the stage's data at rest (``qpos0``, ``mj_forward`` on the stage's model), for
+        the measures at rest; the run continues from ``state``."""
+        mujoco.mj_resetData(self.stage.model, self.stage.data)
+        with capture_mujoco_warnings():
+            mujoco.mj_forward(self.stage.model, self.stage.data)
+
+
+#: Seconds of the first segment of the standing test: the validation's simulated second
+#: (:func:`robovae.generate.validate.check_robot`), after which a robot at rest may stop.
+FIRST_SECONDS = 1.0
+
+
+def first_steps(model: mujoco.MjModel, seconds: float = FIRST_SECONDS) -> int:
+    """Steps of a segment of ``seconds`` at the model's time step (at least 1)."""
+    return max(1, math.ceil(seconds / model.opt.timestep))
+
+
 def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
              limit_torques: bool = True, min_height: float = 0.5, max_tilt: float = 45.0,
              sample_dt: float = 0.02, max_steps: int = 10_000, chunk_seconds: float = 0.5,
-             rest: float = 1e-3) -> StandResult:
+             rest: float = 1e-3, held: HeldRun | None = None) -> StandResult:
     """The standing test of a robot file, spec, model with a floor or stage (module docstring).
 
     ``max_steps`` caps the physics steps: a robot with a tiny time step is tested for less than
-    ``seconds`` (``StandResult.seconds`` says how long). The simulation runs in rollouts of
-    ``chunk_seconds`` and stops early at the first failing sample or when the robot is at rest
-    (after at least 1 s, every ``|qvel|`` below ``rest``, m/s or rad/s).
+    ``seconds`` (``StandResult.seconds`` says how long). The simulation runs in rollouts, the
+    first of :data:`FIRST_SECONDS`, then of ``chunk_seconds``, and stops early at the first
+    failing sample or when the robot is at rest (after at least 1 s, every ``|qvel|`` below
+    ``rest``, m/s or rad/s). ``held``: the simulation of ``robot`` (a stage) already begun, by
+    the validator, with the same ``stiffness`` and ``limit_torques``: its segments are judged
+    first, then it is continued (the same result as starting afresh).
 
     Raises:
         RobovaeError: a model without a floor; RobotFileError: a file that does not load.
     """
-    st = stage(robot, integrator=mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
-    if not st.free:
+    if held is None:
+        st = stage(robot)
+        if not st.free:
+            return StandResult(floating=False)
+        held = HeldRun(st, stiffness, limit_torques)
+    elif not held.stage.free:
         return StandResult(floating=False)
-    model = st.model
-    pose = rest_pose(model)
-    ctrl, limited = hold_at_rest(model, st.extent, stiffness, limit_torques, pose)
-    data = st.data  # the stage's (allocating one costs more than a chunk): reset, then restored
     try:
-        return _hold(model, data, st, pose, ctrl, limited, seconds, min_height, max_tilt,
-                     sample_dt, max_steps, chunk_seconds, rest)
+        return _judge(held, seconds, min_height, max_tilt, sample_dt, max_steps,
+                      chunk_seconds, rest)
     finally:
         if isinstance(robot, Stage):  # the caller's stage is left at rest
-            mujoco.mj_resetData(robot.model, data)
-            mujoco.mj_forward(robot.model, data)
+            held.rest()
 
 
-def _hold(model: mujoco.MjModel, data: mujoco.MjData, st: Stage, pose: np.ndarray,
-          ctrl: np.ndarray, limited: int, seconds: float, min_height: float, max_tilt: float,
-          sample_dt: float, max_steps: int, chunk_seconds: float, rest: float) -> StandResult:
-    """The simulation of :func:`standing`, on the held ``model`` from ``pose``."""
-    root = st.root
-    mujoco.mj_resetData(model, data)
-    data.qpos[:] = pose
-    mujoco.mj_forward(model, data)
-    h0 = float(data.xpos[root, 2] - robot_points(model, data, root)[:, 2].min())
-    up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
+def _judge(held: HeldRun, seconds: float, min_height: float, max_tilt: float,
+           sample_dt: float, max_steps: int, chunk_seconds: float, rest: float) -> StandResult:
+    """The verdict of :func:`standing` over ``held``'s segments, run as needed.
+
+    Samples are taken every ``sample_dt`` of simulated time and at the end of every segment;
+    the values reported for a fallen robot are those up to its failing sample, so that they do
+    not depend on how the simulation was cut into segments."""
+    model, st = held.model, held.stage
     dt = model.opt.timestep
     steps = min(max(1, round(seconds / dt)), max_steps)
     every = max(1, round(sample_dt / dt))
     chunk = max(every, round(chunk_seconds / dt) // every * every)
-    qadr = model.jnt_qposadr[model.body_jntadr[root]]
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    state = np.empty(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, data, state, spec)
+    qadr = model.jnt_qposadr[model.body_jntadr[st.root]]
     fell_at, min_ratio, worst, ratio, tilt = None, math.inf, 0.0, math.nan, 0.0
-    bad, settled, done = False, False, 0
-    with capture_mujoco_warnings():
-        while done < steps and fell_at is None and not bad and not settled:
-            n = min(chunk, steps - done)
-            states, _ = rollout.rollout(model, data, state[None], ctrl[None, None], nstep=n)
-            s = states[0]
-            # MuJoCo resets the state (time jumps back) on a bad acceleration
-            bad = (unstable(data) or not np.isfinite(s).all()
-                   or bool(np.any(np.diff(s[:, 0]) <= 0)) or s[0, 0] <= state[0])
-            picks = np.arange(every - 1, n, every)
-            if not len(picks) or picks[-1] != n - 1:
-                picks = np.append(picks, n - 1)
-            q = s[picks, 1 + qadr:1 + qadr + 7]  # the free joint: position, quaternion
-            z = q[:, 2]
-            w, x, y, qz = q[:, 3], q[:, 4], q[:, 5], q[:, 6]
-            norm = np.maximum(w * w + x * x + y * y + qz * qz, 1e-12)
-            row = np.stack([2 * (x * qz - w * y), 2 * (y * qz + w * x),
-                            w * w - x * x - y * y + qz * qz], axis=1) / norm[:, None]
-            up_z = np.clip(row @ up_local, -1.0, 1.0)  # world z of the local up axis
-            ratios = (z - st.floor_z) / max(h0, 1e-9)
-            tilts = np.degrees(np.arccos(up_z))
-            ok = np.isfinite(ratios) & np.isfinite(tilts)
-            if ok.any():
-                ratio, tilt = float(ratios[ok][-1]), float(tilts[ok][-1])
-                min_ratio = min(min_ratio, float(ratios[ok].min()))
-                worst = max(worst, float(tilts[ok].max()))
-            failed = np.flatnonzero(~ok | (ratios < min_height) | (tilts > max_tilt))
-            if failed.size:
-                fell_at = (done + picks[failed[0]] + 1) * dt
-            state = s[-1].copy()
-            done += n
-            qvel = state[1 + model.nq:1 + model.nq + model.nv]
-            settled = done * dt >= 1.0 and bool(np.abs(qvel).max(initial=0.0) < rest)
+    if held.done != sum(len(p) for p in held.pending):
+        raise ValueError("standing: the held run was judged already (start a new HeldRun)")
+    bad, settled, done, t_prev = False, False, 0, held.t0
+    while done < steps and fell_at is None and not bad and not settled:
+        if held.pending:
+            s = held.pending.pop(0)
+        else:
+            s = held.run(first_steps(model) if done == 0 else chunk)[0]
+            held.pending.pop()
+        n = min(len(s), steps - done)
+        s = s[:n]
+        # MuJoCo resets the state (time jumps back) on a bad acceleration
+        bad = (unstable(st.data) or not np.isfinite(s).all()
+               or bool(np.any(np.diff(s[:, 0]) <= 0)) or s[0, 0] <= t_prev)
+        t_prev = float(s[-1, 0])
+        picks = np.flatnonzero((done + np.arange(1, n + 1)) % every == 0)
+        if not len(picks) or picks[-1] != n - 1:
+            picks = np.append(picks, n - 1)
+        q = s[picks, 1 + qadr:1 + qadr + 7]  # the free joint: position, quaternion
+        z = q[:, 2]
+        w, x, y, qz = q[:, 3], q[:, 4], q[:, 5], q[:, 6]
+        norm = np.maximum(w * w + x * x + y * y + qz * qz, 1e-12)
+        row = np.stack([2 * (x * qz - w * y), 2 * (y * qz + w * x),
+                        w * w - x * x - y * y + qz * qz], axis=1) / norm[:, None]
+        up_z = np.clip(row @ held.up_local, -1.0, 1.0)  # world z of the local up axis
+        ratios = (z - st.floor_z) / max(held.h0, 1e-9)
+        tilts = np.degrees(np.arccos(up_z))
+        ok = np.isfinite(ratios) & np.isfinite(tilts)
+        failed = np.flatnonzero(~ok | (ratios < min_height) | (tilts > max_tilt))
+        if failed.size:  # up to the failing sample only
+            fell_at = (done + picks[failed[0]] + 1) * dt
+            ok[failed[0] + 1:] = False
+        if ok.any():
+            ratio, tilt = float(ratios[ok][-1]), float(tilts[ok][-1])
+            min_ratio = min(min_ratio, float(ratios[ok].min()))
+            worst = max(worst, float(tilts[ok].max()))
+        done += n
+        qvel = s[-1, 1 + model.nq:1 + model.nq + model.nv]
+        settled = done * dt >= FIRST_SECONDS and bool(np.abs(qvel).max(initial=0.0) < rest)
+    held.pending.clear()
     if bad and fell_at is None:
         fell_at = done * dt
     return StandResult(
@@ -248,5 +334,5 @@ def _hold(model: mujoco.MjModel, data: mujoco.MjData, st: Stage, pose: np.ndarra
         up=bool(ratio >= min_height) and not bad, upright=bool(tilt <= max_tilt) and not bad,
         fell_at=fell_at, height_ratio=ratio,
         min_height_ratio=min_ratio if math.isfinite(min_ratio) else math.nan,
-        max_tilt=worst, unstable=bool(bad), limited_joints=limited, seconds=done * dt,
+        max_tilt=worst, unstable=bool(bad), limited_joints=held.limited, seconds=done * dt,
         settled=settled)
