@@ -1,27 +1,32 @@
-"""Benchmark: generation throughput — decode, write MJCF, validate (1 s of MuJoCo), measure
-quality — and RAM.
+"""Benchmark: generation throughput — decode, write MJCF, validate — against validating the same
+files alone (issue 21: ``robovae generate --no-quality`` at >= 80 % of the MuJoCo-only
+validation throughput, both on ``--jobs`` processes), and RAM.
 
-Robots: with ``--ckpt``, N prior samples of a checkpoint decoded in float64 (as ``robovae
-generate`` does); without, the graphs of N procedural robots
-(:func:`robovae.data.procedural.procedural_graphs`, ``paper34``) stand in for decoded ones. Each
-graph gets a floating base and mirrored limbs, as the pipeline gives them. Rows (one table; wall
-and CPU seconds, the CPU of this process or of the finished worker processes):
+Robots: with ``--ckpt``, N prior samples of a checkpoint decoded in float64 as ``robovae
+generate`` decodes them (:func:`robovae.generate.pipeline.prepare_records`: latents and node
+noise of seed 0, floating base, mirrored limbs); without, the graphs of N procedural robots
+(:func:`robovae.data.procedural.procedural_graphs`, ``paper34``) stand in for decoded ones (no
+end-to-end row then). Rows (wall and CPU seconds; CPU of this process, or of the worker
+processes once they have finished):
 
-- ``decode`` or ``procedural graphs``;
-- ``writer``: rules + MjSpec + files in this process (no load check, no per-file fsync, one
-  ``os.sync`` at the end, as the pipeline's workers write);
-- ``validate``: MuJoCo only (the files exist), in 1 and in ``--jobs`` worker processes;
-- ``write + validate + quality``: what the pipeline's workers do for each robot
-  (:func:`robovae.generate.build.build_robot`), in ``--jobs`` worker processes, and the
-  same less a separate run of the workers' start-up (imports, one robot each);
-- with ``--ckpt``, the whole ``generate()`` (decode, write, validate and measure in the
-  workers).
+- ``decode`` (one torch thread, as ``generate`` decodes while its workers run) or
+  ``procedural graphs``;
+- ``writer``: rules + MjSpec + files in this process, as a worker writes (no load check, no
+  per-file fsync), one ``os.sync`` at the end;
+- ``validate``: MuJoCo only, the written files, ``--jobs`` processes
+  (:func:`robovae.generate.validate.validate_many`, ``--validation`` controls);
+- ``write + validate`` in ``--jobs`` spawned worker processes
+  (:func:`robovae.generate.build.build_robot`, no quality), less a separate run of the
+  workers' start-up;
+- with ``--ckpt``: ``generate()`` end to end (``quality=False``: decode in this process while
+  the workers write and validate), then the same files validated alone.
 
-Then the end-to-end throughput as a share of the MuJoCo-only validation throughput on
-``--jobs`` processes (target >= 80 %) and the peak RSS.
+Then the end-to-end throughput over the validation-only throughput of the same files (target
+>= 80 %), with and without the fixed costs of a run (model load, worker start-up, summary:
+a run of ``--jobs`` robots), and the peak RSS.
 
-    python benchmarks/generate.py --ckpt runs/zoo/checkpoints/last.ckpt --n 1000 --jobs 2
-    PYTHONPATH=. python benchmarks/generate.py --n 1000 --jobs 2    # procedural robots
+    PYTHONPATH=. python benchmarks/generate.py --ckpt runs/default/checkpoints/last.ckpt --n 2000
+    PYTHONPATH=. python benchmarks/generate.py --n 1000    # procedural robots, no model
 """
 
 from __future__ import annotations
@@ -33,8 +38,6 @@ import shutil
 import tempfile
 import time
 from pathlib import Path
-
-import torch
 
 from robovae.data.procedural import parse_procedural, procedural_graphs
 from robovae.evaluate.tables import format_table
@@ -54,25 +57,49 @@ def _cpu(children: bool = False) -> float:
 
 
 class _Clock:
-    """Wall and CPU seconds of a block: this process's CPU, or the worker processes' that
-    finished inside it (``children``)."""
+    """Wall and CPU seconds of a block: this process's CPU, plus (``children``) that of the
+    worker processes that finished inside it."""
 
     def __init__(self, children: bool = False) -> None:
         self.children = children
 
     def __enter__(self) -> _Clock:
-        self.wall, self.cpu = time.perf_counter(), _cpu(self.children)
+        self.wall = time.perf_counter()
+        self.cpu = _cpu() + (_cpu(True) if self.children else 0.0)
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.wall = time.perf_counter() - self.wall
-        self.cpu = _cpu(self.children) - self.cpu
+        self.cpu = _cpu() + (_cpu(True) if self.children else 0.0) - self.cpu
+
+    def minus(self, other: _Clock) -> _Clock:
+        out = _Clock(self.children)
+        out.wall, out.cpu = self.wall - other.wall, self.cpu - other.cpu
+        return out
 
 
 def _row(step: str, n: int, c: _Clock) -> dict:
     return {"step": step, "robots": n, "wall s": f"{c.wall:.2f}",
             "robots/s (wall)": f"{n / c.wall:.1f}", "CPU s": f"{c.cpu:.2f}",
-            "CPU ms/robot": f"{1e3 * c.cpu / n:.1f}"}
+            "CPU ms/robot": f"{1e3 * c.cpu / n:.2f}"}
+
+
+def _graphs(args: argparse.Namespace, model) -> list:
+    """The graphs the workers get: decoded and prepared as generate() prepares them."""
+    if model is None:
+        fs = "paper34"
+        graphs = procedural_graphs(parse_procedural(f"n={args.n}"), fs, jobs=1)
+        return [mirror_limbs(floating_base(g, fs)[0], fs)[0] for g in graphs]
+    from robovae.generate.pipeline import prepare_records
+
+    graphs = []
+    for k in range(0, args.n, args.batch_size):
+        chunk = list(range(k, min(args.n, k + args.batch_size)))
+        z, noise = model.sample_prior(0, chunk, 1.0)
+        _, items = prepare_records(model, chunk, z, model.decode(z, node_noise=noise),
+                                   Path("unused"))
+        graphs += [item[0] for item in items]
+    return graphs
 
 
 def main() -> None:
@@ -81,82 +108,85 @@ def main() -> None:
     p.add_argument("--n", type=int, default=1000)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--batch-size", type=int, default=256)
+    p.add_argument("--validation", choices=("held", "zero"), default="held")
     p.add_argument("--root", default=None, help="work folder (default: a temp folder)")
     args = p.parse_args()
-    from robovae.generate.pipeline import generate, latent, worker_pool
+    import torch
+
+    from robovae.generate.pipeline import generate, worker_pool
     from robovae.model.checkpoint import load_model
 
     root = Path(args.root or tempfile.mkdtemp(prefix="robovae_genbench_"))
     rows = []
-
     model = load_model(args.ckpt).to(torch.float64) if args.ckpt else None
     fs = model.feature_set.name if model is not None else "paper34"
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
     with _Clock() as c:
-        if model is not None:
-            dim = model.hparams.latent_dim
-            graphs = []
-            for k in range(0, args.n, args.batch_size):
-                idx = range(k, min(args.n, k + args.batch_size))
-                graphs += model.decode(torch.stack([latent(0, i, dim) for i in idx]).double())
-        else:
-            graphs = procedural_graphs(parse_procedural(f"n={args.n}"), fs, jobs=1)
-        graphs = [mirror_limbs(floating_base(g, fs)[0], fs)[0] for g in graphs]
-    rows.append(_row(f"decode (batch {args.batch_size})" if model is not None
-                     else "procedural graphs", args.n, c))
+        graphs = _graphs(args, model)
+    torch.set_num_threads(threads)
+    rows.append(_row(f"decode (batch {args.batch_size}, 1 thread) + floating base, mirrored "
+                     "limbs" if model is not None else "procedural graphs", args.n, c))
 
     with _Clock() as c:
         paths = [write_robot(g, root / "w" / f"robot_{i:06d}", fs, check=False,
                              durable=False).robot_path for i, g in enumerate(graphs)]
         os.sync()
+    writer = c
     rows.append(_row("writer (rules + MjSpec + files), 1 process", args.n, c))
 
-    sub = paths[: max(1, args.n // 4)]
-    with _Clock() as c:
-        validate_many(sub, jobs=1)
-    rows.append(_row("validate, 1 process", len(sub), c))
     with _Clock(children=True) as c:
-        checks = validate_many(paths, jobs=args.jobs)
-    validation = c.wall
-    rows.append(_row(f"validate (MuJoCo only), {args.jobs} processes", args.n, c))
+        checks = validate_many(paths, jobs=args.jobs, controls=args.validation)
+    rows.append(_row(f"validate (MuJoCo only, {args.validation}), {args.jobs} processes",
+                     args.n, c))
 
-    items = [(g.cpu(), root / "b" / f"robot_{i:06d}", fs, f"robot_{i:06d}", True, True, True)
-             for i, g in enumerate(graphs)]
+    items = [(g, root / "b" / f"robot_{i:06d}", fs, f"robot_{i:06d}", True, True, False,
+              args.validation) for i, g in enumerate(graphs)]
     with _Clock(children=True) as start, worker_pool(args.jobs) as pool:
         list(pool.map(build_robot, items[:args.jobs]))
-    rows.append(_row(f"worker start-up (imports) + 1 robot each, {args.jobs} processes",
-                     args.jobs, start))
     with _Clock(children=True) as c, worker_pool(args.jobs) as pool:
-        built = list(pool.map(build_robot, items, chunksize=4))
-    rows.append(_row(f"write + validate + quality, {args.jobs} processes (incl. start-up)",
-                     args.n, c))
-    steady = _Clock()
-    steady.wall, steady.cpu = c.wall - start.wall, c.cpu - start.cpu
-    rows.append(_row("  the same without the start-up", args.n - args.jobs, steady))
+        list(pool.map(build_robot, items, chunksize=4))
+    rows.append(_row(f"write + validate in {args.jobs} workers, less their start-up "
+                     f"({start.wall:.1f} s)", args.n - args.jobs, c.minus(start)))
 
-    end_to_end = None
+    ratio = None
     if model is not None:
-        with _Clock(children=True) as c:
-            report = generate(model, args.n, root / "g", jobs=args.jobs, progress=False,
-                              batch_size=args.batch_size)
-        end_to_end = c.wall
-        rows.append(_row(f"generate() end to end, {args.jobs} processes", args.n, c))
+        kw = {"jobs": args.jobs, "progress": False, "batch_size": args.batch_size,
+              "quality": False, "controls": args.validation}
+        with _Clock(children=True) as fixed:
+            generate(model, args.jobs, root / "g0", **kw)
+        with _Clock(children=True) as e2e:
+            report = generate(model, args.n, root / "g", **kw)
+        rows.append(_row(f"generate() end to end, --no-quality, {args.jobs} workers",
+                         args.n, e2e))
+        rows.append(_row(f"  the same less a run of {args.jobs} robots (model load, worker "
+                         "start-up, summary)", args.n - args.jobs, e2e.minus(fixed)))
+        files = [root / "g" / r for r in sorted(os.listdir(root / "g"))
+                 if r.startswith("robot_")]
+        with _Clock(children=True) as val:
+            validate_many([f / "robot.xml" for f in files], jobs=args.jobs,
+                          controls=args.validation)
+        rows.append(_row(f"validate the same files alone, {args.jobs} processes", len(files),
+                         val))
+        ratio = (val.wall / len(files)) / (e2e.wall / args.n)
+        steady = (val.wall / len(files)) / (e2e.minus(fixed).wall / (args.n - args.jobs))
+        by_cpu = (val.cpu / len(files)) / (e2e.minus(fixed).cpu / (args.n - args.jobs))
 
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(format_table(rows, ["step", "robots", "wall s", "robots/s (wall)", "CPU s",
                               "CPU ms/robot"]))
-    per = steady.cpu / (args.n - args.jobs)
-    print(f"10,000 robots written, validated and measured on {args.jobs} processes: "
-          f"{start.wall + 10_000 * steady.wall / (args.n - args.jobs):.0f} s at this machine's "
-          f"wall rate, {10_000 * per / args.jobs:.0f} s from the CPU per robot on idle cores")
-    if end_to_end is not None:
-        print(f"end to end / MuJoCo-only validation throughput: {validation / end_to_end:.0%}")
+    print(f"writer: {1e3 * writer.cpu / args.n:.2f} ms CPU per robot "
+          f"({args.n / writer.cpu:.0f} robots per CPU-second)")
+    if ratio is not None:
+        print(f"end to end / validation-only throughput (wall): {ratio:.0%}, {steady:.0%} "
+              f"without the run's fixed costs; from the CPU per robot (idle cores): "
+              f"{by_cpu:.0%}; target 80 %")
         print(report.format())
     valid = sum(cv.valid for cv in checks)
-    measured = sum("quality" in b for b in built)
     mean_nodes = sum(g.num_nodes for g in graphs) / len(graphs)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"valid {valid}/{args.n} ({valid / args.n:.1%}), quality measured for {measured}, "
-          f"mean nodes {mean_nodes:.1f}, peak RSS (main process) {peak:.0f} MiB")
+    print(f"valid {valid}/{args.n} ({valid / args.n:.1%}), mean nodes {mean_nodes:.1f}, "
+          f"peak RSS (main process) {peak:.0f} MiB")
     if args.root is None:
         shutil.rmtree(root, ignore_errors=True)
 

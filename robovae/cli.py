@@ -71,7 +71,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
                       batch_size=args.batch_size, jobs=args.jobs, scene=args.scene,
                       overwrite=args.overwrite, floating=args.floating_base,
                       mirror=args.mirror_limbs, node_temperature=args.node_temperature,
-                      quality=args.quality)
+                      quality=args.quality, controls=args.validation)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -157,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--temperature", type=float, default=1.0, help="prior std multiplier")
     g.add_argument("--validate", action=argparse.BooleanOptionalAction, default=True,
                    help="simulate each robot 1 s in MuJoCo and classify it")
+    g.add_argument("--validation", choices=("held", "zero"), default="held",
+                   help="the validation's second: joints PD-held at rest (the first second of "
+                   "the standing test; default) or zero controls")
     g.add_argument("--scene", action=argparse.BooleanOptionalAction, default=True,
                    help="also write scene.xml (floor + light + robot)")
     g.add_argument("--batch-size", type=int, default=256, help="latents decoded at once")
@@ -169,8 +172,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--mirror-limbs", action=argparse.BooleanOptionalAction, default=True,
                    help="near-mirror limb pairs on the trunk become exact mirror images")
     g.add_argument("--quality", action=argparse.BooleanOptionalAction, default=True,
-                   help="measure every valid robot: attached, symmetric, standing (about as "
-                   "costly as validation)")
+                   help="measure every valid robot: attached, symmetric, standing (the "
+                   "standing test continues the validation's held second)")
     g.add_argument("--node-temperature", type=float, default=None,
                    help="std multiplier of the node latents' noise (default: --temperature)")
     g.add_argument("--like", help="a robot file: sample variations of it (around its encoded "

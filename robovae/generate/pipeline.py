@@ -7,6 +7,11 @@ batch size, on which robots were already done, or on the process that made it: r
 skips the robots already in the manifest (resume after a crash), and the same checkpoint +
 seed give byte-identical files. Manifest lines are flushed and fsync'ed per batch; robot
 folders are complete before their manifest line is written.
+
+With worker processes the main process decodes batch ``k + 1`` while the workers write,
+validate and measure batch ``k`` (the next batch is queued before the previous one is
+collected, so the workers never wait for the decoder, nor the decoder for them); decoding then
+uses one torch thread, the workers having the other cores.
 """
 
 from __future__ import annotations
@@ -72,7 +77,8 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
             _atomic_json(path, run)
         return
     if not overwrite:
-        what = ", ".join(k for k in run if old is None or old.get(k) != run[k])
+        keys = list(run) + [k for k in (old or {}) if k not in run]
+        what = ", ".join(k for k in keys if old is None or old.get(k) != run.get(k))
         raise RobovaeError(f"robovae: {out}: holds robots of another run ({what or 'unknown'} "
                            "differ); use another --out or --overwrite")
     for item in out.iterdir():
@@ -186,6 +192,7 @@ def generate(
     mirror: bool = True,
     node_temperature: float | None = None,
     quality: bool = True,
+    controls: str = "held",
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -194,12 +201,14 @@ def generate(
             holds robots of another run.
 
     ``out`` is tied to the model and settings that started it (``run.json``): resuming with
-    another checkpoint, seed or temperature is refused unless ``overwrite``. ``temperature``
-    scales the robot latent ``z``; ``node_temperature`` (default: ``temperature``) the node
-    latents' noise (the detail of each node). ``mirror``: near-mirror limb pairs become exact
-    mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`, reported as
-    ``mirror_limbs``). ``quality``: measure every valid robot (attached, symmetric, standing;
-    :func:`~robovae.evaluate.quality.measure.robot_quality`, about as costly as validation).
+    another checkpoint, seed, temperature or validation is refused unless ``overwrite``.
+    ``temperature`` scales the robot latent ``z``; ``node_temperature`` (default:
+    ``temperature``) the node latents' noise (the detail of each node). ``mirror``: near-mirror
+    limb pairs become exact mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`,
+    reported as ``mirror_limbs``). ``quality``: measure every valid robot (attached, symmetric,
+    standing; :func:`~robovae.evaluate.quality.measure.robot_quality`). ``controls``: the
+    validation's simulation, ``"held"`` (the first second of the standing test) or ``"zero"``
+    (:mod:`robovae.generate.validate`).
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
@@ -207,9 +216,12 @@ def generate(
     start = time.perf_counter()
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
     out = Path(out)
-    claim(out, {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
-                "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
-                "node_temperature": node_temperature}, overwrite)
+    run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
+           "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
+           "node_temperature": node_temperature}
+    if validate and controls != "zero":  # folders validated with zero controls resume as before
+        run["validation"] = controls
+    claim(out, run, overwrite)
     # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
     # a robot must not depend on which robots it was decoded with (byte-identical files)
     model = model.to(torch.float64)
@@ -220,21 +232,38 @@ def generate(
     bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
                disable=not progress)
     jobs = jobs or (os.cpu_count() or 1)
-    with open_manifest(out / MANIFEST) as manifest, \
-            (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
-        for chunk in _chunks(todo, batch_size):
-            z, noise = model.sample_prior(seed, chunk, temperature)
-            if node_temperature is not None:
-                noise = model.sample_prior(seed, chunk, node_temperature)[1]
-            records = write_records(model, chunk, z, model.decode(z, node_noise=noise), out,
-                                    seed=seed,
-                                    temperature=temperature, validate=validate, jobs=jobs,
-                                    scene=scene, floating=floating, pool=pool, mirror=mirror,
-                                    quality=quality)
-            append_records(manifest, records)
-            bar.update(len(chunk))
+    threads = torch.get_num_threads()
+    opts = {"seed": seed, "temperature": temperature, "validate": validate, "scene": scene,
+            "floating": floating, "mirror": mirror, "quality": quality, "controls": controls}
+    try:
+        if jobs > 1:
+            torch.set_num_threads(1)  # the workers have the other cores
+        with open_manifest(out / MANIFEST) as manifest, \
+                (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
+            queued = None  # the batch the workers are on: its records and their results
+            for chunk in _chunks(todo, batch_size):
+                z, noise = model.sample_prior(seed, chunk, temperature)
+                if node_temperature is not None:
+                    noise = model.sample_prior(seed, chunk, node_temperature)[1]
+                records, items = prepare_records(
+                    model, chunk, z, model.decode(z, node_noise=noise), out, **opts)
+                built = pool.map(build_robot, items, chunksize=4) if pool is not None \
+                    else [build_robot(item) for item in items]
+                if queued is not None:  # collected only once the next batch is queued
+                    _finish(manifest, *queued, bar)
+                queued = records, built
+            if queued is not None:
+                _finish(manifest, *queued, bar)
+    finally:
+        torch.set_num_threads(threads)
     bar.close()
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
+
+
+def _finish(manifest: TextIO, records: list[dict], built, bar) -> None:
+    """Merge a batch's worker results into its records and append them to the manifest."""
+    append_records(manifest, merge_built(records, built))
+    bar.update(len(records))
 
 
 def worker_pool(jobs: int) -> ProcessPoolExecutor:
@@ -244,22 +273,14 @@ def worker_pool(jobs: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
 
 
-def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
-                  graphs: Sequence[RobotData], out: Path, seed: int = 0,
-                  temperature: float = 1.0, validate: bool = True, jobs: int = 0,
-                  scene: bool = True, floating: bool = True,
-                  pool: Executor | None = None, mirror: bool = True,
-                  quality: bool = True) -> list[dict]:
-    """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
-    validate them. Returns one manifest record per robot (the caller appends them).
-
-    Writing and validation run in ``pool`` (or ``jobs`` worker processes, 0: all cores; 1: in
-    this process). With ``floating``, a robot whose root is a single joint gets a floating
-    base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
-    ``mirror``, near-mirror limb pairs are mirrored (:func:`~robovae.generate.symmetry.
-    mirror_limbs`, listed as ``mirror_limbs``); with ``quality`` (and ``validate``), every
-    valid robot's quality measures go into its record under ``quality``.
-    """
+def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
+                    graphs: Sequence[RobotData], out: Path, seed: int = 0,
+                    temperature: float = 1.0, validate: bool = True, scene: bool = True,
+                    floating: bool = True, mirror: bool = True, quality: bool = True,
+                    controls: str = "held") -> tuple[list[dict], list[tuple]]:
+    """The first half of :func:`write_records`, in this process: each decoded robot's graph
+    given a floating base and mirrored limbs (as asked), its manifest record so far and the
+    work item of :func:`~robovae.generate.build.build_robot` (write, validate, measure)."""
     records, items = [], []
     fs = model.feature_set
     for i, g, zi in zip(indices, graphs, z):
@@ -276,7 +297,41 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                    latent=[round(float(v), 6) for v in zi], rules=fixes,
                    path=f"robot_{i:06d}/robot.xml")
         records.append(rec)
-        items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality))
+        items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality,
+                      controls))
+    return records, items
+
+
+def merge_built(records: list[dict], built) -> list[dict]:
+    """The second half of :func:`write_records`: each record completed with what
+    :func:`~robovae.generate.build.build_robot` returned for it (in order)."""
+    for rec, b in zip(records, built):
+        rec["rules"] = rec["rules"] + b.pop("rules")
+        rec.update(b)
+    return records
+
+
+def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
+                  graphs: Sequence[RobotData], out: Path, seed: int = 0,
+                  temperature: float = 1.0, validate: bool = True, jobs: int = 0,
+                  scene: bool = True, floating: bool = True,
+                  pool: Executor | None = None, mirror: bool = True,
+                  quality: bool = True, controls: str = "held") -> list[dict]:
+    """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
+    validate them. Returns one manifest record per robot (the caller appends them).
+
+    Writing and validation run in ``pool`` (or ``jobs`` worker processes, 0: all cores; 1: in
+    this process). With ``floating``, a robot whose root is a single joint gets a floating
+    base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
+    ``mirror``, near-mirror limb pairs are mirrored (:func:`~robovae.generate.symmetry.
+    mirror_limbs`, listed as ``mirror_limbs``); with ``quality`` (and ``validate``), every
+    valid robot's quality measures go into its record under ``quality``; ``controls``: the
+    validation's simulation (:mod:`robovae.generate.validate`).
+    """
+    records, items = prepare_records(model, indices, z, graphs, out, seed=seed,
+                                     temperature=temperature, validate=validate, scene=scene,
+                                     floating=floating, mirror=mirror, quality=quality,
+                                     controls=controls)
     jobs = jobs or (os.cpu_count() or 1)
     if pool is not None:
         built = list(pool.map(build_robot, items, chunksize=4))
@@ -285,10 +340,7 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     else:
         with worker_pool(jobs) as tmp_pool:
             built = list(tmp_pool.map(build_robot, items, chunksize=4))
-    for rec, b in zip(records, built):
-        rec["rules"] = rec["rules"] + b.pop("rules")
-        rec.update(b)
-    return records
+    return merge_built(records, built)
 
 
 def append_records(manifest: TextIO, records: Sequence[dict]) -> None:

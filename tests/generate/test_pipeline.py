@@ -212,12 +212,30 @@ def test_a_folder_of_another_run_is_refused_unless_overwrite(trained, tmp_path):
     assert json.loads((out / RUN).read_text())["seed"] == 1
 
 
+def test_the_validation_is_part_of_the_run(trained, tmp_path):
+    """Held validation (the default) is recorded in run.json: a folder validated one way is not
+    resumed the other way; zero controls remain available."""
+    _, _, ckpt = trained
+    held = generate(ckpt, 3, tmp_path / "held", jobs=1, progress=False, quality=False)
+    assert json.loads((tmp_path / "held" / RUN).read_text())["validation"] == "held"
+    with pytest.raises(RobovaeError, match="validation differ"):
+        generate(ckpt, 3, tmp_path / "held", jobs=1, progress=False, controls="zero")
+    zero = generate(ckpt, 3, tmp_path / "zero", jobs=1, progress=False, quality=False,
+                    controls="zero")
+    assert "validation" not in json.loads((tmp_path / "zero" / RUN).read_text())
+    assert _files(tmp_path / "held") == _files(tmp_path / "zero")  # the same robots
+    assert set(held.reasons) | set(zero.reasons) <= set(REASONS)
+
+
 @pytest.mark.timeout(180)
 def test_worker_processes_give_the_same_robots(trained, tmp_path):
     """Writing and validating in spawned workers (a forked worker can deadlock in torch)."""
     _, _, ckpt = trained
+    threads = torch.get_num_threads()
     one = generate(ckpt, 6, tmp_path / "one", jobs=1, progress=False)
+    # two batches: the second is decoded while the workers build the first
     two = generate(ckpt, 6, tmp_path / "two", jobs=2, progress=False, batch_size=4)
+    assert torch.get_num_threads() == threads  # decoding used one thread, then restored
     assert _files(tmp_path / "one") == _files(tmp_path / "two")
     assert one.reasons == two.reasons
     strip = lambda r: {k: v for k, v in r.items() if k != "detail"}  # noqa: E731
