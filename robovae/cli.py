@@ -71,7 +71,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
                       batch_size=args.batch_size, jobs=args.jobs, scene=args.scene,
                       overwrite=args.overwrite, floating=args.floating_base,
                       mirror=args.mirror_limbs, node_temperature=args.node_temperature,
-                      quality=args.quality, controls=args.validation)
+                      quality=args.quality, controls=args.validation, redraws=args.redraws)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -174,6 +174,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--quality", action=argparse.BooleanOptionalAction, default=True,
                    help="measure every valid robot: attached, symmetric, standing (the "
                    "standing test continues the validation's held second)")
+    g.add_argument("--redraws", type=int, default=4,
+                   help="a sample whose decoding reached the decoder's node or depth limit (an "
+                   "unfinished tree) redraws its latent up to this many times (rule "
+                   "redraw_unfinished)")
     g.add_argument("--node-temperature", type=float, default=None,
                    help="std multiplier of the node latents' noise (default: --temperature)")
     g.add_argument("--like", help="a robot file: sample variations of it (around its encoded "

@@ -64,6 +64,8 @@ class RobotDataModule(L.LightningDataModule):
             ``0 … n-1``, see :mod:`robovae.generate.predict`) instead of the test robots.
         predict_seed: seed of those samples.
         predict_temperature: prior temperature of those samples.
+        predict_redraws: an unfinished decoding (at the decoder's node or depth limit) redraws
+            its latent up to this many times (:func:`robovae.model.prior.draw_robots`).
         feature_shift: training-batch augmentation (:class:`~robovae.data.augment.FeatureJitter`):
             std of a per-robot offset on every feature column, normalised units (0: off).
         feature_noise: std of per-node feature noise, normalised units (0: off).
@@ -96,6 +98,7 @@ class RobotDataModule(L.LightningDataModule):
         predict_samples: int = 0,
         predict_seed: int = 0,
         predict_temperature: float = 1.0,
+        predict_redraws: int = 4,
         feature_shift: float = 0.0,
         feature_noise: float = 0.0,
         tree_surgery: float = 0.0,
@@ -220,5 +223,6 @@ class RobotDataModule(L.LightningDataModule):
             return self.test_dataloader()
         skip = self.predict_skip() if callable(self.predict_skip) else self.predict_skip
         self.predict_set = LatentIndices(hp.predict_samples, hp.predict_seed,
-                                         hp.predict_temperature, skip=skip)
+                                         hp.predict_temperature, skip=skip,
+                                         redraws=hp.predict_redraws)
         return TorchDataLoader(self.predict_set, batch_size=max(hp.batch_size, 1))

@@ -14,16 +14,19 @@ from torch.utils.data import Dataset
 
 
 class LatentIndices(Dataset):
-    """Robot indices to generate, each item ``{"index", "seed", "temperature"}``."""
+    """Robot indices to generate, each item ``{"index", "seed", "temperature", "redraws"}``
+    (``redraws``: how often an unfinished decoding may redraw its latent,
+    :func:`robovae.model.prior.draw_robots`)."""
 
     def __init__(self, n: int, seed: int = 0, temperature: float = 1.0,
-                 skip: Sequence[int] = ()) -> None:
+                 skip: Sequence[int] = (), redraws: int = 0) -> None:
         skip = set(skip)
         self.indices = [i for i in range(n) if i not in skip]
-        self.seed, self.temperature = seed, temperature
+        self.seed, self.temperature, self.redraws = seed, temperature, redraws
 
     def __len__(self) -> int:
         return len(self.indices)
 
     def __getitem__(self, k: int) -> dict[str, Any]:
-        return {"index": self.indices[k], "seed": self.seed, "temperature": self.temperature}
+        return {"index": self.indices[k], "seed": self.seed, "temperature": self.temperature,
+                "redraws": self.redraws}

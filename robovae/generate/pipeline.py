@@ -43,7 +43,7 @@ from robovae.generate.build import build_robot
 from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
 from robovae.model.checkpoint import load_model
-from robovae.model.prior import latent, node_noise  # noqa: F401  (re-exported)
+from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import RoboVAE
 
 MANIFEST = "manifest.jsonl"
@@ -193,6 +193,7 @@ def generate(
     node_temperature: float | None = None,
     quality: bool = True,
     controls: str = "held",
+    redraws: int = 4,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -208,8 +209,13 @@ def generate(
     reported as ``mirror_limbs``). ``quality``: measure every valid robot (attached, symmetric,
     standing; :func:`~robovae.evaluate.quality.measure.robot_quality`). ``controls``: the
     validation's simulation, ``"held"`` (the first second of the standing test) or ``"zero"``
-    (:mod:`robovae.generate.validate`).
+    (:mod:`robovae.generate.validate`). ``redraws``: a robot whose decoding did not finish its
+    tree (it reached the decoder's node or depth limit) redraws its ``z`` up to this many times
+    (:func:`~robovae.model.prior.draw_robots`; rule ``redraw_unfinished``, ``draw`` in the
+    record).
     """
+    if isinstance(redraws, bool) or not isinstance(redraws, int) or redraws < 0:
+        raise RobovaeError(f"robovae: --redraws must be a non-negative integer, got {redraws!r}")
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
                            f"not {n!r}")
@@ -218,7 +224,7 @@ def generate(
     out = Path(out)
     run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
            "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
-           "node_temperature": node_temperature}
+           "node_temperature": node_temperature, "redraws": redraws}
     if validate and controls != "zero":  # folders validated with zero controls resume as before
         run["validation"] = controls
     claim(out, run, overwrite)
@@ -242,11 +248,10 @@ def generate(
                 (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
             queued = None  # the batch the workers are on: its records and their results
             for chunk in _chunks(todo, batch_size):
-                z, noise = model.sample_prior(seed, chunk, temperature)
-                if node_temperature is not None:
-                    noise = model.sample_prior(seed, chunk, node_temperature)[1]
-                records, items = prepare_records(
-                    model, chunk, z, model.decode(z, node_noise=noise), out, **opts)
+                z, graphs, draws = draw_robots(model, seed, chunk, temperature,
+                                               node_temperature, redraws)
+                records, items = prepare_records(model, chunk, z, graphs, out, draws=draws,
+                                                 **opts)
                 built = pool.map(build_robot, items, chunksize=4) if pool is not None \
                     else [build_robot(item) for item in items]
                 if queued is not None:  # collected only once the next batch is queued
@@ -277,15 +282,18 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                     graphs: Sequence[RobotData], out: Path, seed: int = 0,
                     temperature: float = 1.0, validate: bool = True, scene: bool = True,
                     floating: bool = True, mirror: bool = True, quality: bool = True,
-                    controls: str = "held") -> tuple[list[dict], list[tuple]]:
+                    controls: str = "held", draws: Sequence[int] | None = None,
+                    ) -> tuple[list[dict], list[tuple]]:
     """The first half of :func:`write_records`, in this process: each decoded robot's graph
     given a floating base and mirrored limbs (as asked), its manifest record so far and the
-    work item of :func:`~robovae.generate.build.build_robot` (write, validate, measure)."""
+    work item of :func:`~robovae.generate.build.build_robot` (write, validate, measure).
+    ``draws``: per robot, the prior draw kept (:func:`~robovae.model.prior.draw_robots`)."""
     records, items = [], []
     fs = model.feature_set
-    for i, g, zi in zip(indices, graphs, z):
+    draws = [0] * len(graphs) if draws is None else draws
+    for i, g, zi, k in zip(indices, graphs, z, draws):
         name = f"robovae_s{seed}_{i:06d}"
-        fixes: list[str] = []
+        fixes: list[str] = ["redraw_unfinished"] if k else []
         if floating:
             g, changed = floating_base(g, fs)
             fixes += ["floating_base"] if changed else []
@@ -294,7 +302,7 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
             fixes += ["mirror_limbs"] if changed else []
         rec = robot_record(g, model.normalizer)
         rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
-                   latent=[round(float(v), 6) for v in zi], rules=fixes,
+                   latent=[round(float(v), 6) for v in zi], draw=int(k), rules=fixes,
                    path=f"robot_{i:06d}/robot.xml")
         records.append(rec)
         items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality,
@@ -316,7 +324,8 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   temperature: float = 1.0, validate: bool = True, jobs: int = 0,
                   scene: bool = True, floating: bool = True,
                   pool: Executor | None = None, mirror: bool = True,
-                  quality: bool = True, controls: str = "held") -> list[dict]:
+                  quality: bool = True, controls: str = "held",
+                  draws: Sequence[int] | None = None) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
     validate them. Returns one manifest record per robot (the caller appends them).
 
@@ -331,7 +340,7 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     records, items = prepare_records(model, indices, z, graphs, out, seed=seed,
                                      temperature=temperature, validate=validate, scene=scene,
                                      floating=floating, mirror=mirror, quality=quality,
-                                     controls=controls)
+                                     controls=controls, draws=draws)
     jobs = jobs or (os.cpu_count() or 1)
     if pool is not None:
         built = list(pool.map(build_robot, items, chunksize=4))

@@ -94,7 +94,7 @@ class RobotWriter(BasePredictionWriter):
         run = {"model": model_fingerprint(_Float32Weights(pl_module)),
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
                "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
-               "node_temperature": None}
+               "node_temperature": None, "redraws": int(hp.predict_redraws)}
         refused = None
         if trainer.is_global_zero:
             try:
@@ -123,7 +123,8 @@ class RobotWriter(BasePredictionWriter):
         records = write_records(pl_module, prediction["index"].tolist(), prediction["z"],
                                 prediction["graphs"], self.out, seed=prediction["seed"],
                                 temperature=prediction["temperature"], validate=self.validate,
-                                jobs=jobs, scene=self.scene, pool=self._pool)
+                                jobs=jobs, scene=self.scene, pool=self._pool,
+                                draws=prediction.get("draws"))
         # (a torn last line of a killed run is terminated first, as by generate)
         with open_manifest(self.out / f"manifest-rank{trainer.global_rank}.jsonl") as manifest:
             append_records(manifest, records)

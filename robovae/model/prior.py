@@ -1,18 +1,78 @@
 """Per-robot prior draws: the latent ``z_i`` and the node-latent noise of robot ``i`` of a
 generation run, each from its own generator seeded by ``(seed, i)``, so a robot's draw does not
-depend on the batch it is decoded in, the number of workers or the robots written before it."""
+depend on the batch it is decoded in, the number of workers or the robots written before it.
+
+A decoding that reaches the decoder's limits (``max_nodes`` nodes, or depth ``max_depth``) did
+not finish its tree: it is a chain cut off by the limit, not a robot (in practice a runaway
+chain past the deepest training robot). :func:`draw_robots` redraws such a robot's ``z`` from
+its next stream, ``(seed, i, 2, k)`` for draw ``k = 1, 2, ...``, at most ``redraws`` times:
+sampling from the prior conditioned on a finished tree, every redraw counted per robot.
+"""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
+if TYPE_CHECKING:  # (the model imports this module)
+    from robovae.data.graph import RobotData
+    from robovae.model.vae import RoboVAE
 
-def latent(seed: int, index: int, dim: int, temperature: float = 1.0) -> torch.Tensor:
+
+def latent(seed: int, index: int, dim: int, temperature: float = 1.0,
+           draw: int = 0) -> torch.Tensor:
     """The latent of robot ``index`` of a run with ``seed``: ``N(0, T² I)``, ``[dim]`` float32,
-    from its own generator (NumPy PCG64 seeded by the pair ``(seed, index)``)."""
-    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, index])))
+    from its own generator (NumPy PCG64 seeded by the pair ``(seed, index)``; redraw ``draw > 0``
+    by ``(seed, index, 2, draw)``)."""
+    key = [seed, index] if draw == 0 else [seed, index, 2, draw]
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(key)))
     return torch.from_numpy(rng.standard_normal(dim).astype(np.float32)) * temperature
+
+
+def tree_depth(parent: torch.Tensor) -> int:
+    """Depth of a pre-order tree given by its parent vector (root -1; a lone root: 0)."""
+    depth = [0] * len(parent)
+    for i, p in enumerate(parent.tolist()):
+        depth[i] = 0 if p < 0 else depth[p] + 1
+    return max(depth, default=0)
+
+
+def unfinished(model: RoboVAE, graph: RobotData) -> bool:
+    """Whether ``graph``'s decoding reached the model's limits (``max_nodes`` or
+    ``max_depth``): its tree was cut off, not finished."""
+    hp = model.hparams
+    return graph.num_nodes >= hp.max_nodes or tree_depth(graph.parent) >= hp.max_depth
+
+
+def draw_robots(model: RoboVAE, seed: int, indices: Sequence[int], temperature: float = 1.0,
+                node_temperature: float | None = None, redraws: int = 0,
+                ) -> tuple[torch.Tensor, list[RobotData], list[int]]:
+    """Decode robots ``indices`` of a run with ``seed`` from the prior (module docstring).
+
+    ``temperature`` scales ``z``, ``node_temperature`` (default: ``temperature``) the node
+    latents' noise. Returns ``(z, graphs, draws)``: the latents decoded ``[B, latent_dim]``, the
+    graphs, and per robot the draw that was kept (0: the first; ``k``: after ``k`` redraws of an
+    unfinished tree, at most ``redraws``; the last draw is kept even if unfinished).
+    """
+    z, noise = model.sample_prior(seed, indices, temperature)
+    if node_temperature is not None:
+        noise = model.sample_prior(seed, indices, node_temperature)[1]
+    graphs = model.decode(z, node_noise=noise)
+    draws = [0] * len(graphs)
+    todo = [b for b, g in enumerate(graphs) if unfinished(model, g)]
+    for k in range(1, redraws + 1):
+        if not todo:
+            break
+        zk = torch.stack([latent(seed, int(indices[b]), z.shape[1], temperature, draw=k)
+                          for b in todo]).to(z)
+        again = model.decode(zk, node_noise=noise[todo])
+        for b, zb, g in zip(todo, zk, again):
+            z[b], graphs[b], draws[b] = zb, g, k
+        todo = [b for b in todo if unfinished(model, graphs[b])]
+    return z, graphs, draws
 
 
 def node_noise(seed: int, index: int, max_nodes: int, dim: int,

@@ -38,7 +38,7 @@ from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
 from robovae.model.messages import level_messages
-from robovae.model.prior import latent, node_noise
+from robovae.model.prior import draw_robots, latent, node_noise
 from robovae.model.tree import TreeSchedule, tree_schedule
 
 
@@ -247,8 +247,10 @@ class RoboVAE(L.LightningModule):
         if not isinstance(batch, dict):
             return self.reconstruct(batch)
         seed, temp = int(batch["seed"][0]), float(batch["temperature"][0])
-        z, noise = self.sample_prior(seed, batch["index"].tolist(), temp)
-        return {"index": batch["index"], "z": z, "graphs": self.decode(z, node_noise=noise),
+        redraws = int(batch["redraws"][0]) if "redraws" in batch else 0
+        z, graphs, draws = draw_robots(self, seed, batch["index"].tolist(), temp,
+                                       redraws=redraws)
+        return {"index": batch["index"], "z": z, "graphs": graphs, "draws": draws,
                 "seed": seed, "temperature": temp}
 
     def configure_optimizers(self):

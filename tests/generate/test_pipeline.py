@@ -181,7 +181,27 @@ def test_generate_n_must_be_a_positive_integer(trained, tmp_path):
     for n in (-5, 0, 1.0, True):
         with pytest.raises(RobovaeError, match="positive integer"):
             generate(ckpt, n, tmp_path / "g", progress=False)
+    for r in (-1, 1.5):
+        with pytest.raises(RobovaeError, match="redraws"):
+            generate(ckpt, 3, tmp_path / "g", progress=False, redraws=r)
     assert not (tmp_path / "g").exists()
+
+
+def test_unfinished_trees_are_redrawn_and_reported(trained, tmp_path):
+    """The small model runs away to its node limit from most latents: with redraws those
+    robots draw new latents (rule redraw_unfinished, the draw in the record)."""
+    _, _, ckpt = trained
+    kw = dict(jobs=1, progress=False, validate=False, quality=False, scene=False)
+    generate(ckpt, 10, tmp_path / "none", redraws=0, **kw)
+    generate(ckpt, 10, tmp_path / "some", redraws=3, **kw)
+    none, some = read_manifest(tmp_path / "none"), read_manifest(tmp_path / "some")
+    assert all(r["draw"] == 0 and "redraw_unfinished" not in r["rules"] for r in none.values())
+    moved = [i for i, r in some.items() if r["draw"] > 0]
+    assert moved and all("redraw_unfinished" in some[i]["rules"] for i in moved)
+    assert all(some[i]["latent"] != none[i]["latent"] for i in moved)
+    kept = [i for i in some if i not in moved]
+    assert all(some[i]["latent"] == none[i]["latent"] for i in kept)
+    assert json.loads((tmp_path / "some" / RUN).read_text())["redraws"] == 3
 
 
 def test_cli_generate_unwritable_out_is_one_line(trained, tmp_path, capsys):
