@@ -18,8 +18,11 @@ between the populations the KL per descriptor, MMD² and coverage.
 With ``quality`` > 0 it also measures robot quality (:mod:`robovae.evaluate.quality`: attached
 bodies, self-penetration, symmetry, standing, optionally locomotion, count distances and
 descriptor precision/recall) on up to ``quality`` robots of each of four populations —
-samples, training corpus, ``procedural`` robots of the procedural generator and the real
-robots of the ``real`` folder (Menagerie) — printed side by side in one table
+samples, training corpus (spread over it, procedural training robots rebuilt from their
+seeds: :func:`~robovae.evaluate.quality.populations.corpus_files`), ``procedural`` robots of
+the generator at seeds no config trains on
+(:data:`~robovae.evaluate.quality.populations.HOLDOUT_SEED`) and the real robots of the
+``real`` folder (Menagerie) — printed side by side in one table
 (:func:`~robovae.evaluate.quality.report.quality_table`), with contact sheets when ``sheets``
 names a folder.
 :func:`format_report` prints the tables; the result is JSON-ready (NaN → ``null``).
@@ -46,7 +49,12 @@ from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
 from robovae.evaluate.descriptors import DESCRIPTORS, descriptors, robot_category
 from robovae.evaluate.population import compare, latent_stats, summary
 from robovae.evaluate.quality.measure import measure_many
-from robovae.evaluate.quality.populations import procedural_files, real_robot_files
+from robovae.evaluate.quality.populations import (
+    HOLDOUT_SEED,
+    corpus_files,
+    procedural_files,
+    real_robot_files,
+)
 from robovae.evaluate.quality.report import contact_sheets, quality_table
 from robovae.evaluate.tables import format_table
 from robovae.generate.pipeline import read_manifest
@@ -224,10 +232,12 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         result["comparison"] = compare(result["training"]["records"], pop["records"],
                                        permutations=permutations, seed=seed)
     if quality > 0:
-        corpus = [g for g in train if getattr(g, "source", None)][:quality]
+        corpus = corpus_files([getattr(g, "source", None) for g in train],
+                              [g.name for g in train], quality, root)
         groups = {"samples": (sample_paths[:quality], None),
-                  "training corpus": ([g.source for g in corpus], [g.name for g in corpus]),
-                  "procedural": (procedural_files(min(procedural, quality), root, seed), None),
+                  "training corpus": corpus,
+                  "procedural": (procedural_files(min(procedural, quality), root,
+                                                  HOLDOUT_SEED + seed), None),
                   "real robots": (real_robot_files(real)[:quality], None)}
         pops = {k: measure_many(files, jobs=jobs or 2, progress=progress, desc=k, names=names,
                                 locomotion=locomotion)

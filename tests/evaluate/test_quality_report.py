@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -110,3 +111,19 @@ def test_written_files_are_robots_as_generate_writes_them(tmp_path) -> None:
                                   for f, g in zip(files, again))
     rows = [robot_quality(f) for f in files]
     assert all("error" not in r and r["floating"] for r in rows)
+
+
+def test_corpus_files_rebuild_procedural_training_robots(tmp_path):
+    """Procedural training robots have no file: the corpus column writes them from their seed
+    (the same robot as the generator's), spread over the corpus; file robots are their file."""
+    from robovae.data.procedural.robots import procedural_spec
+    from robovae.evaluate.quality.populations import corpus_files
+
+    sources = [f"procedural:quadruped:{s}" for s in range(6)] + [None, "/some/robot.xml"]
+    names = [f"r{i}" for i in range(8)]
+    files, picked = corpus_files(sources, names, 3, tmp_path)
+    assert picked == ["r0", "r2", "r4"]  # every 7 // 3 = 2nd of the 7 with a source
+    assert files[1].endswith("proc_quadruped_000002.xml")
+    assert Path(files[1]).read_text() == procedural_spec(2, "quadruped").to_xml()
+    assert corpus_files(sources, names, 10, tmp_path)[0][-1] == "/some/robot.xml"
+    assert corpus_files([None], ["x"], 3, tmp_path) == ([], [])

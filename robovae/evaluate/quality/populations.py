@@ -5,7 +5,12 @@
   from the working directory;
 - :func:`procedural_files`: ``n`` robots of the procedural generator
   (:func:`robovae.data.procedural.write_procedural`, seeds ``seed … seed+n-1``, every kind in
-  turn), written once into a cache folder and reused;
+  turn), written once into a cache folder and reused; the quality table draws them from
+  :data:`HOLDOUT_SEED` on, seeds no config trains on (``default``: 0–9,999, ``large``:
+  0–99,999), so that the column is the generator, not the training set;
+- :func:`corpus_files`: files of ``n`` training robots spread over the corpus (every
+  ``len/n``-th); a procedural training robot (source ``procedural:<class>:<seed>``) is written
+  from its seed, a file robot is its own file;
 - :func:`written_files`: the graphs of procedural robots and of the zoo written the way
   ``robovae generate`` writes a decoded robot (floating base, mirrored limbs, the writer's
   rules and floor placement): what a model that reproduced its training robots would give.
@@ -14,11 +19,17 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 from robovae.data.procedural import parse_procedural, procedural_graphs, write_procedural
 
-__all__ = ["procedural_files", "real_robot_files", "written_files"]
+__all__ = ["HOLDOUT_SEED", "corpus_files", "procedural_files", "real_robot_files",
+           "written_files"]
+
+#: First procedural seed of the quality table's generator column (beyond every config's
+#: training robots).
+HOLDOUT_SEED = 1_000_000
 
 
 def real_robot_files(folder: str | os.PathLike | None = None) -> list[Path]:
@@ -36,6 +47,33 @@ def procedural_files(n: int, root: str | os.PathLike = "data_cache", seed: int =
     if n <= 0:
         return []
     return write_procedural(Path(root) / "raw" / f"quality_procedural_s{seed}", n, seed=seed)
+
+
+def corpus_files(sources: Sequence[str | None], names: Sequence[str], n: int,
+                 root: str | os.PathLike = "data_cache") -> tuple[list[str], list[str]]:
+    """Files and names of ``n`` training robots, every ``len/n``-th of ``sources`` (the graphs'
+    ``source``: a file path or ``procedural:<class>:<seed>``; robots without one are skipped).
+    Procedural robots are written once into ``root/raw/quality_corpus`` from their seed."""
+    from robovae.data.procedural.robots import procedural_spec
+
+    known = [(s, m) for s, m in zip(sources, names) if s]
+    if n <= 0 or not known:
+        return [], []
+    step = max(1, len(known) // n)
+    picked = known[::step][:n]
+    out = Path(root) / "raw" / "quality_corpus"
+    files = []
+    for src, _ in picked:
+        if src.startswith("procedural:"):
+            _, kind, seed = src.split(":")
+            path = out / f"proc_{kind}_{int(seed):06d}.xml"
+            if not path.is_file():
+                out.mkdir(parents=True, exist_ok=True)
+                path.write_text(procedural_spec(int(seed), kind).to_xml())
+            files.append(str(path))
+        else:
+            files.append(src)
+    return files, [m for _, m in picked]
 
 
 def written_files(n: int, root: str | os.PathLike = "data_cache", seed: int = 0,
