@@ -3,8 +3,9 @@ files alone (issue 21: ``robovae generate --no-quality`` at >= 80 % of the MuJoC
 validation throughput, both on ``--jobs`` processes), and RAM.
 
 Robots: with ``--ckpt``, N prior samples of a checkpoint decoded in float64 as ``robovae
-generate`` decodes them (:func:`robovae.generate.pipeline.prepare_records`: latents and node
-noise of seed 0, floating base, mirrored limbs); without, the graphs of N procedural robots
+generate`` decodes them (:func:`robovae.model.prior.draw_robots` with generate's 4 redraws,
+:func:`robovae.generate.pipeline.prepare_records`: latents and node noise of seed 0, floating
+base, mirrored limbs); without, the graphs of N procedural robots
 (:func:`robovae.data.procedural.procedural_graphs`, ``paper34``) stand in for decoded ones (no
 end-to-end row then). Rows (wall and CPU seconds; CPU of this process, or of the worker
 processes once they have finished):
@@ -91,13 +92,14 @@ def _graphs(args: argparse.Namespace, model) -> list:
         graphs = procedural_graphs(parse_procedural(f"n={args.n}"), fs, jobs=1)
         return [mirror_limbs(floating_base(g, fs)[0], fs)[0] for g in graphs]
     from robovae.generate.pipeline import prepare_records
+    from robovae.model.prior import draw_robots
 
     graphs = []
     for k in range(0, args.n, args.batch_size):
         chunk = list(range(k, min(args.n, k + args.batch_size)))
-        z, noise = model.sample_prior(0, chunk, 1.0)
-        _, items = prepare_records(model, chunk, z, model.decode(z, node_noise=noise),
-                                   Path("unused"))
+        # as generate() draws them: an unfinished decoding redraws its latent (default 4 times)
+        z, decoded, draws = draw_robots(model, 0, chunk, 1.0, redraws=4)
+        _, items = prepare_records(model, chunk, z, decoded, Path("unused"), draws=draws)
         graphs += [item[0] for item in items]
     return graphs
 
