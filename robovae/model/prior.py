@@ -12,14 +12,25 @@ sampling from the prior conditioned on a finished tree, every redraw counted per
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 import torch
 
-if TYPE_CHECKING:  # (the model imports this module)
-    from robovae.data.graph import RobotData
-    from robovae.model.vae import RoboVAE
+from robovae.data.graph import RobotData
+
+
+class PriorModel(Protocol):
+    """What :func:`draw_robots` needs of a model (:class:`~robovae.model.vae.RoboVAE`, which
+    imports this module)."""
+
+    hparams: Any
+
+    def sample_prior(self, seed: int, indices: Sequence[int],
+                     temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]: ...
+
+    def decode(self, z: torch.Tensor, node_noise: torch.Tensor | None = None
+               ) -> list[RobotData]: ...
 
 
 def latent(seed: int, index: int, dim: int, temperature: float = 1.0,
@@ -40,14 +51,14 @@ def tree_depth(parent: torch.Tensor) -> int:
     return max(depth, default=0)
 
 
-def unfinished(model: RoboVAE, graph: RobotData) -> bool:
+def unfinished(model: PriorModel, graph: RobotData) -> bool:
     """Whether ``graph``'s decoding reached the model's limits (``max_nodes`` or
     ``max_depth``): its tree was cut off, not finished."""
     hp = model.hparams
     return graph.num_nodes >= hp.max_nodes or tree_depth(graph.parent) >= hp.max_depth
 
 
-def draw_robots(model: RoboVAE, seed: int, indices: Sequence[int], temperature: float = 1.0,
+def draw_robots(model: PriorModel, seed: int, indices: Sequence[int], temperature: float = 1.0,
                 node_temperature: float | None = None, redraws: int = 0,
                 ) -> tuple[torch.Tensor, list[RobotData], list[int]]:
     """Decode robots ``indices`` of a run with ``seed`` from the prior (module docstring).
