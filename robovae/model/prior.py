@@ -27,10 +27,12 @@ class PriorModel(Protocol):
     hparams: Any
 
     def sample_prior(self, seed: int, indices: Sequence[int],
-                     temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]: ...
+                     temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(z, node_noise)`` of robots ``indices`` of a run with ``seed``."""
 
     def decode(self, z: torch.Tensor, node_noise: torch.Tensor | None = None
-               ) -> list[RobotData]: ...
+               ) -> list[RobotData]:
+        """Robot graphs decoded from latents ``z``."""
 
 
 def latent(seed: int, index: int, dim: int, temperature: float = 1.0,
