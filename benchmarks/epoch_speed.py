@@ -5,9 +5,12 @@ Each row runs the Lightning CLI in a subprocess on ``--config`` (its model and d
 with ``procedural:n=N`` as the only source, one epoch, no validation, no checkpoint: once with
 one process and ``--threads`` torch threads, once with Lightning's DDP over ``--devices``
 processes (one thread each). The dataset is built first (and cached), so the rows time training
-alone. Columns: wall time of the fit (from the trainer's start to its end, read from the run's
-log), CPU time of all processes, peak RSS (the largest of the processes, and their sum for DDP,
-from ``/proc``), robots per second.
+alone. Columns: wall time of the whole command (start-up, data loading, the epoch, the final
+checkpoint), wall time of the training epoch alone (:class:`EpochClock`, a callback the command
+is given, on rank 0), CPU time of the processes the command waited for, peak RSS (the largest
+of the processes, and their sum for DDP, from ``ps``), the peak of the processes' summed PSS
+(``/proc/PID/smaps_rollup``: the memory-mapped dataset the DDP processes share counted once,
+the machine's memory the command holds), robots per second of the epoch.
 
     PYTHONPATH=. python benchmarks/epoch_speed.py --n 100000 --config configs/large.yaml
 """
@@ -24,46 +27,75 @@ import threading
 import time
 from pathlib import Path
 
+import lightning as L
+
 from robovae.data.dataset import RobotDataset
 from robovae.evaluate.tables import format_table
 
 REPO = Path(__file__).resolve().parents[1]
+#: The line :class:`EpochClock` prints to stderr.
+EPOCH_TAG = "epoch_seconds="
 
 
-def _tree_rss(pid: int) -> tuple[int, int]:
-    """(largest, summed) resident set size in bytes of ``pid`` and its descendants."""
-    sizes = []
+class EpochClock(L.Callback):
+    """Prints ``epoch_seconds=<wall s>`` of each training epoch to stderr (rank 0)."""
+
+    def on_train_epoch_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
+        self.start = time.perf_counter()
+
+    def on_train_epoch_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
+        if trainer.is_global_zero:
+            print(f"{EPOCH_TAG}{time.perf_counter() - self.start:.1f}", file=sys.stderr,
+                  flush=True)
+
+
+def _pss(pid: int) -> int:
+    """Proportional set size in bytes (shared pages divided among their users), 0 if gone."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def _tree_rss(pid: int) -> tuple[int, int, int]:
+    """(largest RSS, summed RSS, summed PSS) in bytes of ``pid`` and its descendants: the
+    summed PSS counts pages the processes share (the memory-mapped dataset) once."""
+    sizes, pss = [], 0
     try:
         out = subprocess.run(["ps", "-o", "pid=,ppid=,rss=", "-A"], capture_output=True,
                              text=True, check=True).stdout
     except (OSError, subprocess.CalledProcessError):
-        return 0, 0
-    kids: dict[int, list[tuple[int, int]]] = {}
+        return 0, 0, 0
+    kids: dict[int, list[int]] = {}
+    own: dict[int, int] = {}
     for line in out.splitlines():
         p, pp, rss = (int(v) for v in line.split())
-        kids.setdefault(pp, []).append((p, rss))
+        kids.setdefault(pp, []).append(p)
+        own[p] = rss
     stack = [pid]
-    own = {int(line.split()[0]): int(line.split()[2]) for line in out.splitlines()}
     while stack:
         p = stack.pop()
         if p in own:
             sizes.append(own[p] * 1024)
-        stack.extend(c for c, _ in kids.get(p, []))
-    return (max(sizes), sum(sizes)) if sizes else (0, 0)
+            pss += _pss(p)
+        stack.extend(kids.get(p, []))
+    return (max(sizes), sum(sizes), pss) if sizes else (0, 0, 0)
 
 
-def _run(args: list[str], env: dict) -> tuple[float, float, int, int]:
-    """Wall, CPU (children), peak largest and peak summed RSS of one CLI run."""
+def _run(args: list[str], env: dict) -> tuple[float, float, float, list[int]]:
+    """Wall, epoch wall, CPU (children) and the peaks of :func:`_tree_rss` of one CLI run."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "robovae.cli", *args], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    peak = [0, 0]
+    peak = [0, 0, 0]
 
     def watch() -> None:
         while proc.poll() is None:
-            big, total = _tree_rss(proc.pid)
-            peak[0], peak[1] = max(peak[0], big), max(peak[1], total)
+            peak[:] = [max(a, b) for a, b in zip(peak, _tree_rss(proc.pid))]
             time.sleep(0.5)
 
     t = threading.Thread(target=watch, daemon=True)
@@ -75,7 +107,9 @@ def _run(args: list[str], env: dict) -> tuple[float, float, int, int]:
         raise SystemExit(f"robovae fit failed:\n{err[-3000:]}")
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
-    return wall, cpu, peak[0], peak[1]
+    epochs = [float(line[len(EPOCH_TAG):]) for line in err.splitlines()
+              if line.startswith(EPOCH_TAG)]
+    return wall, epochs[-1] if epochs else float("nan"), cpu, peak
 
 
 def main() -> None:
@@ -99,7 +133,9 @@ def main() -> None:
                   f"--data.root={args.root}", "--data.val_names=[]", "--data.test_names=[]",
                   "--data.val_fraction=0", "--data.test_fraction=0", "--trainer.max_epochs=1",
                   "--trainer.limit_val_batches=0", "--trainer.enable_progress_bar=false",
-                  "--trainer.logger=false", f"--checkpoint.dirpath={tmp}/ckpt"]
+                  "--trainer.logger=false", f"--checkpoint.dirpath={tmp}/ckpt",
+                  f"--trainer.default_root_dir={tmp}",
+                  "--trainer.callbacks+=benchmarks.epoch_speed.EpochClock"]
         if args.batch_size:
             common.append(f"--data.batch_size={args.batch_size}")
         modes = {"single": (["--trainer.devices=1"], args.threads),
@@ -109,15 +145,16 @@ def main() -> None:
                 continue
             env = {**os.environ, "OMP_NUM_THREADS": str(threads), "PYTHONPATH": str(REPO),
                    "PYTHONWARNINGS": "ignore"}
-            wall, cpu, big, total = _run([*common, *extra], env)
+            wall, epoch, cpu, (big, total, pss) = _run([*common, *extra], env)
             procs = 1 if name == "single" else args.devices
             rows.append([f"{name} ({procs} x {threads} thread)", len(ds), f"{wall:.0f}",
-                         f"{cpu:.0f}", f"{big / 2**30:.2f}", f"{total / 2**30:.2f}",
-                         f"{len(ds) / wall:.0f}"])
+                         f"{epoch:.0f}", f"{cpu:.0f}", f"{big / 2**30:.2f}",
+                         f"{total / 2**30:.2f}", f"{pss / 2**30:.2f}",
+                         f"{len(ds) / epoch:.0f}"])
     print(f"dataset {source}: {len(ds)} robots, loaded/built in {build:.1f} s; "
           f"load average {os.getloadavg()[0]:.1f}")
-    cols = ["run", "robots", "wall s (whole command)", "CPU s", "peak RSS GB", "summed RSS GB",
-            "robots/s"]
+    cols = ["run", "robots", "wall s (whole command)", "epoch s", "CPU s",
+            "peak RSS GB", "summed RSS GB", "summed PSS GB", "robots/s (epoch)"]
     print(format_table([dict(zip(cols, r)) for r in rows], cols))
 
 

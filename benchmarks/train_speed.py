@@ -31,7 +31,7 @@ import yaml
 from torch_geometric.data import Batch
 
 from robovae.data.dataset import RobotDataset
-from robovae.data.features import Normalizer
+from robovae.data.normalizer import Normalizer
 from robovae.evaluate.tables import format_table
 from robovae.model.encoder import encode_reference
 from robovae.model.vae import RoboVAE

@@ -13,8 +13,8 @@ from torch_geometric.loader import DataLoader
 
 from robovae.data.augment import Augmentation, FeatureJitter, TreeSurgery
 from robovae.data.dataset import RobotDataset
-from robovae.data.features import Normalizer
 from robovae.data.latents import LatentIndices
+from robovae.data.normalizer import Normalizer
 
 
 def select_names(names: Sequence[str], wanted: Sequence[str]) -> list[int]:
@@ -165,9 +165,8 @@ class RobotDataModule(L.LightningDataModule):
         self.train_set = self.dataset[train]
         self.val_set = self.dataset[val]
         self.test_set = self.dataset[test] if test else self.dataset[val]
-        x = torch.cat([d.x for d in self.train_set])
-        t = torch.cat([d.node_type for d in self.train_set])
-        self.normalizer = Normalizer(self.dataset.feature_set).fit(x, t)
+        x, t, rows = self.dataset.node_rows(train)
+        self.normalizer = Normalizer(self.dataset.feature_set).fit(x, t, rows)
         self.augmentation = self.train_augmentation()
 
     def train_augmentation(self) -> Augmentation | None:

@@ -157,6 +157,13 @@ class RobotDataset(InMemoryDataset):
         """Nothing to download: sources are local files, packages or generators."""
         pass
 
+    def load(self, path: str, data_cls: type = RobotData) -> None:
+        """Load the processed cache memory-mapped (``torch.load(mmap=True)``): the collated
+        tensors stay in the page cache, read on demand and shared by every process that maps
+        the file (the DDP training processes hold one copy of the dataset between them)."""
+        data, self.slices, data_cls = torch.load(path, mmap=True, weights_only=False)
+        self.data = data_cls.from_dict(data) if isinstance(data, dict) else data
+
     # --- build -----------------------------------------------------------------------------
 
     def _load_files(self) -> tuple[list[RobotData], list[str]]:
@@ -216,6 +223,22 @@ class RobotDataset(InMemoryDataset):
     def names(self) -> list[str]:
         """Robot names in dataset order."""
         return [r["name"] for r in self.report["robots"]]
+
+    def node_rows(self, indices: Sequence[int]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The collated node features ``x`` and ``node_type`` of the whole dataset, and a bool
+        mask of the rows that belong to the robots ``indices`` (positions in this dataset).
+
+        Statistics over many robots (the normaliser of a training split) read the collated
+        storage through this mask instead of separating one ``Data`` object per robot.
+        """
+        store, ptr = self._data, self.slices["x"]
+        graph_ids = torch.arange(len(ptr) - 1)
+        if self._indices is not None:  # a subset view: positions → stored graphs
+            graph_ids = torch.as_tensor(self.indices())
+        keep = torch.zeros(len(ptr) - 1, dtype=torch.bool)
+        keep[graph_ids[torch.as_tensor(list(indices), dtype=torch.long)]] = True
+        rows = torch.repeat_interleave(keep, ptr.diff())
+        return store.x, store.node_type, rows
 
     def by_name(self, name: str) -> RobotData:
         """The robot called ``name``."""

@@ -93,51 +93,74 @@ _CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1
 _OBB_GAIN = 0.95
 
 
-def _oriented_box(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(centre, quat, half-sizes)`` of a box bounding ``pts`` ``[n, 3]``: along their
-    principal axes (longest extent first, right-handed, ``w >= 0``), or along the frame's own
-    axes (identity) when that box is not :data:`_OBB_GAIN` smaller in volume."""
-    lo, hi = pts.min(0), pts.max(0)
-    rot = np.eye(3)
-    _, vecs = np.linalg.eigh(np.cov((pts - pts.mean(0)).T) + 1e-12 * np.eye(3))
-    cand = vecs[:, ::-1]
-    local = pts @ cand
-    c_lo, c_hi = local.min(0), local.max(0)
-    if np.prod(c_hi - c_lo) < _OBB_GAIN * np.prod(hi - lo):
-        rot, lo, hi = cand, c_lo, c_hi
-    order = np.argsort(-(hi - lo), kind="stable")
-    rot, lo, hi = rot[:, order], lo[order], hi[order]
-    if np.linalg.det(rot) < 0:
-        rot[:, 2] *= -1.0
-        lo[2], hi[2] = -hi[2], -lo[2]
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, rot.flatten())
-    quat *= 1.0 if quat[0] >= 0 else -1.0
-    return rot @ (0.5 * (lo + hi)), quat, 0.5 * (hi - lo)
+def _quat_mats(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``[n, 3, 3]`` of unit quaternions ``[n, 4]`` (``w, x, y, z``)."""
+    w, x, y, z = q.T
+    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                     2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+                    -1).reshape(-1, 3, 3)
+
+
+def _oriented_boxes(pts: np.ndarray, starts: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(centre, quat, half-sizes)`` of one box per group of points (``pts [n, 3]``, group
+    ``k`` the rows ``starts[k]:starts[k+1]``): along the group's principal axes (longest
+    extent first, right-handed, ``w >= 0``), or along the frame's own axes (identity) when that
+    box is not :data:`_OBB_GAIN` smaller in volume. Every group is handled at once (segment
+    reductions and a batched ``eigh``)."""
+    counts = np.diff(np.append(starts, len(pts)))
+    owner = np.repeat(np.arange(len(starts)), counts)
+    mean = np.add.reduceat(pts, starts, axis=0) / counts[:, None]
+    d = pts - mean[owner]
+    cov = np.add.reduceat(d[:, :, None] * d[:, None, :], starts, axis=0)
+    cov = cov / np.maximum(counts - 1, 1)[:, None, None] + 1e-12 * np.eye(3)
+    cand = np.linalg.eigh(cov)[1][:, :, ::-1]
+    local = np.einsum("pi,pij->pj", pts, cand[owner])
+    lo, hi = np.minimum.reduceat(pts, starts, axis=0), np.maximum.reduceat(pts, starts, axis=0)
+    c_lo = np.minimum.reduceat(local, starts, axis=0)
+    c_hi = np.maximum.reduceat(local, starts, axis=0)
+    use = np.prod(c_hi - c_lo, 1) < _OBB_GAIN * np.prod(hi - lo, 1)
+    rot = np.where(use[:, None, None], cand, np.eye(3))
+    lo, hi = np.where(use[:, None], c_lo, lo), np.where(use[:, None], c_hi, hi)
+    order = np.argsort(-(hi - lo), axis=1, kind="stable")
+    rot = np.take_along_axis(rot, order[:, None, :], axis=2)
+    lo, hi = np.take_along_axis(lo, order, 1), np.take_along_axis(hi, order, 1)
+    flip = np.linalg.det(rot) < 0
+    rot[flip, :, 2] *= -1.0
+    lo[flip, 2], hi[flip, 2] = -hi[flip, 2], -lo[flip, 2]
+    quat = np.zeros((len(starts), 4))
+    for k in range(len(starts)):
+        mujoco.mju_mat2Quat(quat[k], rot[k].flatten())
+    quat *= np.where(quat[:, :1] >= 0, 1.0, -1.0)
+    return np.einsum("kij,kj->ki", rot, 0.5 * (lo + hi)), quat, 0.5 * (hi - lo)
 
 
 def _link_boxes(model: mujoco.MjModel, bodies: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(centre, quat, half-sizes)`` (``[len(bodies), 3 | 4 | 3]``) of the oriented box that
     bounds each body's collision geoms (all its geoms when none collides; zeros, identity
-    without geoms), body frame (:func:`_oriented_box` of the corners of every geom's own
+    without geoms), body frame (:func:`_oriented_boxes` of the corners of every geom's own
     bounding box, ``geom_aabb``)."""
     m = model
     n = len(bodies)
     center, half, quat = np.zeros((n, 3)), np.zeros((n, 3)), np.tile([1.0, 0, 0, 0], (n, 1))
     colliding = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
-    for k, b in enumerate(bodies.tolist()):
-        g = np.arange(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b])
-        if g.size == 0:
-            continue
-        if colliding[g].any():
-            g = g[colliding[g]]
-        mats = np.zeros((g.size, 9))
-        for i, q in enumerate(m.geom_quat[g]):
-            mujoco.mju_quat2Mat(mats[i], q)
-        local = m.geom_aabb[g, None, :3] + _CORNERS[None] * m.geom_aabb[g, None, 3:]
-        pts = np.einsum("gij,gcj->gci", mats.reshape(-1, 3, 3), local) + m.geom_pos[g, None]
-        center[k], quat[k], half[k] = _oriented_box(pts.reshape(-1, 3))
+    owner = m.geom_bodyid.astype(np.int64)
+    has_colliding = np.bincount(owner[colliding], minlength=m.nbody) > 0
+    g = np.flatnonzero(colliding | ~has_colliding[owner])
+    g = g[np.argsort(owner[g], kind="stable")]
+    if g.size == 0:
+        return center, quat, half
+    local = m.geom_aabb[g, None, :3] + _CORNERS[None] * m.geom_aabb[g, None, 3:]
+    pts = np.einsum("gij,gcj->gci", _quat_mats(m.geom_quat[g]), local) + m.geom_pos[g, None]
+    groups, first = np.unique(owner[g], return_index=True)
+    c, q, h = _oriented_boxes(pts.reshape(-1, 3), 8 * first)
+    row = np.full(m.nbody, -1)
+    row[groups] = np.arange(len(groups))
+    have = row[bodies] >= 0
+    center[have], quat[have], half[have] = c[row[bodies][have]], q[row[bodies][have]], \
+        h[row[bodies][have]]
     return center, quat, half
 
 

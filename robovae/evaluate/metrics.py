@@ -46,7 +46,8 @@ import torch
 from torch import Tensor
 from torch_geometric.data import Data
 
-from robovae.data.features import FeatureSet, Normalizer, get_feature_set
+from robovae.data.features import FeatureSet, get_feature_set
+from robovae.data.normalizer import Normalizer
 
 __all__ = ["Reconstruction", "match_trees", "reconstruction_metrics", "summarize"]
 

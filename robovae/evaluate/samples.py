@@ -22,8 +22,9 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from robovae.data.features import JOINT, LINK, Normalizer
+from robovae.data.features import JOINT, LINK
 from robovae.data.graph import RobotData, limbs
+from robovae.data.normalizer import Normalizer
 
 DUPLICATE_TOL = 0.05
 

@@ -2,7 +2,7 @@
 
 A decoded graph carries continuous features that may be slightly (or wildly) outside what MuJoCo
 accepts. A *rule* is a named function ``rule(data, feature_set) -> (repaired copy, fired)``
-working on **physical** values (after :meth:`robovae.data.features.Normalizer.inverse`); it
+working on **physical** values (after :meth:`robovae.data.normalizer.Normalizer.inverse`); it
 only changes values that violate its constraint and says whether any float32 value changed
 ("fired"). ``data`` itself is never modified. :func:`apply_rules` runs every rule in the order
 of :data:`RULES` and returns the repaired graph and the names of the rules that fired.

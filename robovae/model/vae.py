@@ -1,6 +1,6 @@
 """``RoboVAE``: the tree-MPNN VAE as a LightningModule (paper §4.2–4.3).
 
-The module owns the feature :class:`~robovae.data.features.Normalizer` (fitted on the training
+The module owns the feature :class:`~robovae.data.normalizer.Normalizer` (fitted on the training
 split by the datamodule and stored in every checkpoint), so ``RoboVAE.load_from_checkpoint``
 alone can encode robot files and decode robots in physical units.
 
@@ -31,8 +31,9 @@ from torch.utils.data import DataLoader, RandomSampler
 from torch_geometric.data import Batch, Data
 
 from robovae.data.augment import NOISE, SHUFFLE, run_seed
-from robovae.data.features import Normalizer, get_feature_set
+from robovae.data.features import get_feature_set
 from robovae.data.graph import RobotData, tree_data
+from robovae.data.normalizer import Normalizer
 from robovae.errors import RobovaeError
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize

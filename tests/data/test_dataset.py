@@ -94,6 +94,14 @@ def test_datamodule_split_by_name_fits_normalizer_on_train(cache_root, menagerie
     assert abs(float(y[t == 0, link_mass].mean())) < 1e-5  # standardised on train only
     batch = next(iter(dm.train_dataloader()))
     assert batch.num_graphs == 2 and batch.x.shape[1] == 34
+    # the rows the normaliser was fitted on are exactly the training robots' nodes (in
+    # storage order), also through a subset view of the dataset
+    order = sorted(dm.dataset.names.index(n) for n in ("go1", "a1"))
+    xs, ts, rows = dm.dataset.node_rows(order)
+    assert torch.equal(xs[rows], torch.cat([dm.dataset[i].x for i in order]))
+    assert torch.equal(ts[rows], torch.cat([dm.dataset[i].node_type for i in order]))
+    view = dm.dataset[order[::-1]]
+    assert torch.equal(view.node_rows([0])[2], dm.dataset.node_rows([order[-1]])[2])
 
 
 def test_select_names_patterns_keep_order_without_repeats():

@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 import torch
 
-from robovae.data.features import JOINT, LINK, Normalizer, get_feature_set
+from robovae.data.features import JOINT, LINK, get_feature_set
+from robovae.data.normalizer import Normalizer
 
 
 def test_paper34_is_appendix_e():
@@ -53,6 +54,18 @@ def test_normalizer_round_trip(name):
     for c in torch.nonzero(cont).view(-1).tolist():
         col = y[own[:, c], c]
         assert abs(float(col.mean())) < 1e-4
+
+
+def test_normalizer_fit_in_chunks_on_selected_rows_equals_one_pass():
+    """Chunked streaming fit over a row mask = fitting on the selected rows at once."""
+    fs = get_feature_set("full")
+    x, t = _random_physical(1000, fs)
+    rows = torch.arange(1000) % 3 != 0
+    whole = Normalizer(fs).fit(x[rows], t[rows], chunk=1 << 20)
+    chunked = Normalizer(fs).fit(x, t, rows=rows, chunk=37)
+    for key in ("mean", "std", "low", "high"):
+        assert torch.allclose(whole.state_dict()[key], chunked.state_dict()[key], atol=1e-5)
+    assert not torch.allclose(Normalizer(fs).fit(x, t).mean, whole.mean)  # the mask matters
 
 
 def test_normalizer_state_travels_in_state_dict():

@@ -7,8 +7,9 @@ import math
 import pytest
 import torch
 
-from robovae.data.features import JOINT, LINK, Normalizer, get_feature_set
+from robovae.data.features import JOINT, LINK, get_feature_set
 from robovae.data.graph import RobotData, tree_data
+from robovae.data.normalizer import Normalizer
 from robovae.evaluate.metrics import (
     Reconstruction,
     match_trees,
