@@ -72,8 +72,8 @@ def summary_row(data: RobotData) -> dict:
 
 
 #: The modules that turn a robot file into a graph: their code is part of every cache key.
-_READER_MODULES = ("actuators.py", "features.py", "graph.py", "loading.py", "mjcf.py",
-                   "robot_file.py")
+_READER_MODULES = ("actuators.py", "box_axes.py", "features.py", "graph.py", "loading.py",
+                   "mjcf.py", "robot_file.py")
 
 
 @cache

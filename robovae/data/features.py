@@ -241,10 +241,12 @@ def _link_box() -> list[Feature]:
         Feature("box_pos", "link", 3, -10.0, 10.0, min_std=0.005, unit="m", source="geom_aabb",
                 doc="Centre of the oriented box bounding the body's collision geoms (else all "
                     "its geoms), body frame (zero if none)"),
-        Feature("box_quat", "link", 4, -1.0, 1.0, min_std=0.1, source="geom_aabb",
-                doc="Orientation of that box in the body frame (its axes: the principal axes "
-                    "of the geoms' corners, longest first; the body axes when those bound it "
-                    "as tightly)"),
+        Feature("box_axes", "link", 6, -1.0, 1.0, min_std=0.1, source="geom_aabb",
+                doc="Orientation of that box in the body frame as the matrix u1 u1ᵀ - u3 u3ᵀ "
+                    "of its longest and shortest axes (entries xx, yy, zz, xy, xz, yz; one "
+                    "value per box orientation, robovae.data.box_axes). The axes: the "
+                    "principal axes of the geoms' corners; the body axes when those bound "
+                    "them as tightly"),
         Feature("box_half", "link", 3, 0.0, 10.0, "log", 1e-4, "m", "geom_aabb",
                 "Half-sizes of that box along its own axes, longest first (zero if none)"),
     ]

@@ -32,6 +32,7 @@ import numpy as np
 import torch
 
 from robovae.data.actuators import joint_strength
+from robovae.data.box_axes import quat_rotations, quat_to_axes
 from robovae.data.features import (
     GEOM,
     GEOM_TYPE_IDS,
@@ -93,15 +94,6 @@ _CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1
 _OBB_GAIN = 0.95
 
 
-def _quat_mats(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``[n, 3, 3]`` of unit quaternions ``[n, 4]`` (``w, x, y, z``)."""
-    w, x, y, z = q.T
-    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                     2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-                    -1).reshape(-1, 3, 3)
-
-
 def _oriented_boxes(pts: np.ndarray, starts: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(centre, quat, half-sizes)`` of one box per group of points (``pts [n, 3]``, group
@@ -153,7 +145,7 @@ def _link_boxes(model: mujoco.MjModel, bodies: np.ndarray
     if g.size == 0:
         return center, quat, half
     local = m.geom_aabb[g, None, :3] + _CORNERS[None] * m.geom_aabb[g, None, 3:]
-    pts = np.einsum("gij,gcj->gci", _quat_mats(m.geom_quat[g]), local) + m.geom_pos[g, None]
+    pts = np.einsum("gij,gcj->gci", quat_rotations(m.geom_quat[g]), local) + m.geom_pos[g, None]
     groups, first = np.unique(owner[g], return_index=True)
     c, q, h = _oriented_boxes(pts.reshape(-1, 3), 8 * first)
     row = np.full(m.nbody, -1)
@@ -203,7 +195,7 @@ def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarra
     if "link.box_half" in keys:
         center, quat, half = _link_boxes(m, b)
         put(rows, "link.box_pos", center)
-        put(rows, "link.box_quat", quat)
+        put(rows, "link.box_axes", quat_to_axes(quat))
         put(rows, "link.box_half", half)
 
     rows = np.flatnonzero(types == JOINT)

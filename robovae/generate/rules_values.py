@@ -17,7 +17,7 @@ as the rule of the same name.
     unit quaternions and axes (left to ``unit_quat``/``axis_unit``, which normalise instead)
     and the derived ``link.subtreemass`` (left to ``subtreemass_consistent``).
 ``unit_quat``
-    ``link.quat``, ``link.iquat``, ``link.box_quat``, ``geom.quat``: ``| |q| - 1 | >``
+    ``link.quat``, ``link.iquat``, ``geom.quat``: ``| |q| - 1 | >``
     :data:`UNIT_TOL` →
     ``q / |q|``; ``|q| < 1e-9`` → identity.
 ``axis_unit``
@@ -39,7 +39,7 @@ __all__ = ["QUATERNIONS", "UNIT_TOL", "UNIT_VECTORS", "axis_unit", "finite", "in
 #: Tolerance on the norm of unit quaternions and axes.
 UNIT_TOL = 1e-4
 #: Quaternion features (unit norm, identity ``(1, 0, 0, 0)`` by default).
-QUATERNIONS = ("link.quat", "link.iquat", "link.box_quat", "geom.quat")
+QUATERNIONS = ("link.quat", "link.iquat", "geom.quat")
 #: Every unit-vector feature: the quaternions and ``joint.axis``.
 UNIT_VECTORS = (*QUATERNIONS, "joint.axis")
 _ONE_HOT = ("joint.type", "geom.type")

@@ -55,6 +55,7 @@ from typing import Literal
 import mujoco
 import numpy as np
 
+from robovae.data.box_axes import axes_to_quat
 from robovae.data.features import GEOM, GEOM_TYPE_IDS, GEOM_TYPES, JOINT, LINK, FeatureSet
 from robovae.data.graph import RobotData
 from robovae.generate.bodies import joint_types, link_structure
@@ -230,7 +231,8 @@ class SpecBuilder:
             else np.zeros(3)
         box = None
         if self.has("link.box_half"):
-            box = (np.array(self.vec(i, "link.box_pos")), np.array(self.vec(i, "link.box_quat")),
+            box = (np.array(self.vec(i, "link.box_pos")),
+                   axes_to_quat(self.get(i, "link.box_axes")),
                    np.maximum(self.get(i, "link.box_half"), 0.0))
         return size, box
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from robovae.data.box_axes import mirror_axes
 from robovae.data.features import JOINT, LINK, FeatureSet
 from robovae.data.graph import RobotData, tree_data
 from robovae.generate.bodies import subtree, trunk
@@ -163,10 +164,11 @@ def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
             out[sl] = fn(row[sl])
 
     if node_type == LINK:
-        for key in ("link.pos", "link.ipos"):
+        for key in ("link.pos", "link.ipos", "link.box_pos"):
             put(key, lambda p: m * p)
         for key in ("link.quat", "link.iquat"):
             put(key, lambda q: np.concatenate([q[:1], -m * q[1:]]))
+        put("link.box_axes", lambda a: mirror_axes(a, m))
     elif node_type == JOINT:
         put("joint.pos", lambda p: m * p)
         put("joint.axis", lambda a: -m * a)

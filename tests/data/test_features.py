@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
+from robovae.data.box_axes import axes_to_quat
 from robovae.data.features import JOINT, LINK, get_feature_set
 from robovae.data.normalizer import Normalizer
 
@@ -108,9 +109,10 @@ def test_kinematic_link_box_bounds_the_collision_geoms():
     g = model_to_graph(mujoco.MjModel.from_xml_string(xml), fs)
     links = (g.node_type == LINK).nonzero().flatten().tolist()
     box = {k: g.x[links][:, fs.slice(f"link.box_{k}")].double().numpy()
-           for k in ("pos", "quat", "half")}
+           for k in ("pos", "axes", "half")}
+    box["quat"] = np.stack([axes_to_quat(a) for a in box["axes"]])
     np.testing.assert_allclose(box["half"][0], [0.1, 0.1, 0.1], atol=1e-6)
-    np.testing.assert_allclose(box["quat"][0], [1, 0, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(box["axes"][0], [1, 0, -1, 0, 0, 0], atol=1e-6)  # body axes
     # the capsule: 0.5 m long between its end centres, radius 0.05, centred at (0.15, 0, -0.2)
     np.testing.assert_allclose(box["pos"][1], [0.15, 0.0, -0.2], atol=1e-3)
     np.testing.assert_allclose(box["half"][1], [0.3, 0.05, 0.05], atol=2e-3)
