@@ -71,7 +71,8 @@ def cmd_generate(args: argparse.Namespace) -> int:
                       batch_size=args.batch_size, jobs=args.jobs, scene=args.scene,
                       overwrite=args.overwrite, floating=args.floating_base,
                       mirror=args.mirror_limbs, node_temperature=args.node_temperature,
-                      quality=args.quality, controls=args.validation, redraws=args.redraws)
+                      quality=args.quality, controls=args.validation, redraws=args.redraws,
+                      prior=args.prior)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -178,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a sample whose decoding reached the decoder's node or depth limit (an "
                    "unfinished tree) redraws its latent up to this many times (rule "
                    "redraw_unfinished)")
+    g.add_argument("--prior", choices=["mixture", "standard"], default=None,
+                   help="sampling prior: the latent mixture fitted to the training robots "
+                   "(default when the checkpoint has one) or the standard normal N(0, I)")
     g.add_argument("--node-temperature", type=float, default=None,
                    help="std multiplier of the node latents' noise (default: --temperature)")
     g.add_argument("--like", help="a robot file: sample variations of it (around its encoded "

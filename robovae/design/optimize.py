@@ -6,8 +6,9 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
 - ``cma``: CMA-ES (the ``cmaes`` package) over ``z in R^d``, started at the prior mean
   ``m_0 = 0`` with step size ``sigma_0 = 1`` (the prior's std), default population
   ``4 + floor(3 ln d)``, seeded with ``seed``; it minimises ``-score``;
-- ``prior``: random prior samples ``z_i ~ N(0, I)`` (:func:`robovae.generate.pipeline.latent`,
-  generator seeded by ``(seed, i)``);
+- ``prior``: random samples of the model's sampling prior, what ``robovae generate`` draws
+  (:meth:`robovae.model.vae.RoboVAE.prior_latent`: the fitted latent mixture, or
+  ``N(0, I)``; generator seeded by ``(seed, i)``);
 - ``procedural``: random robots of :func:`robovae.data.procedural.procedural_spec` (seed drawn
   from ``(seed, i, 2)``, any kind).
 
@@ -46,7 +47,7 @@ import torch
 
 from robovae.design.score import SCORE_VERSION, TASKS, score_robot
 from robovae.errors import RobovaeError
-from robovae.generate.pipeline import latent, model_fingerprint, worker_pool
+from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
 
@@ -167,7 +168,7 @@ class _Run:
                      if k >= len(self.pending) and start + k < self.budget]
         for k in range(min(pop, left["prior"])):
             i = len(ev["prior"]) + k
-            jobs.append(("prior", i, latent(self.seed, i, self.dim).double().numpy()))
+            jobs.append(("prior", i, self.model.prior_latent(self.seed, i).double().numpy()))
         for k in range(min(pop, left["procedural"])):
             i = len(ev["procedural"]) + k
             jobs.append(("procedural", i, procedural_seed(self.seed, i)))

@@ -44,7 +44,7 @@ from robovae.generate.rules import floating_base
 from robovae.generate.symmetry import mirror_limbs
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
-from robovae.model.vae import RoboVAE
+from robovae.model.vae import PRIORS, RoboVAE
 
 MANIFEST = "manifest.jsonl"
 SUMMARY = "summary.json"
@@ -194,6 +194,7 @@ def generate(
     quality: bool = True,
     controls: str = "held",
     redraws: int = 4,
+    prior: str | None = None,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -212,8 +213,11 @@ def generate(
     (:mod:`robovae.generate.validate`). ``redraws``: a robot whose decoding did not finish its
     tree (it reached the decoder's node or depth limit) redraws its ``z`` up to this many times
     (:func:`~robovae.model.prior.draw_robots`; rule ``redraw_unfinished``, ``draw`` in the
-    record).
+    record). ``prior``: ``mixture`` or ``standard`` (:data:`~robovae.model.vae.PRIORS`;
+    default: the checkpoint's ``prior``); the prior actually used is recorded in ``run.json``.
     """
+    if prior is not None and prior not in PRIORS:
+        raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")
     if isinstance(redraws, bool) or not isinstance(redraws, int) or redraws < 0:
         raise RobovaeError(f"robovae: --redraws must be a non-negative integer, got {redraws!r}")
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
@@ -221,10 +225,13 @@ def generate(
                            f"not {n!r}")
     start = time.perf_counter()
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
+    if prior is not None:
+        model.hparams.prior = prior
     out = Path(out)
     run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
            "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
-           "node_temperature": node_temperature, "redraws": redraws}
+           "node_temperature": node_temperature, "redraws": redraws,
+           "prior": "mixture" if model.sampling_mixture() is not None else "standard"}
     if validate and controls != "zero":  # folders validated with zero controls resume as before
         run["validation"] = controls
     claim(out, run, overwrite)

@@ -94,7 +94,8 @@ class RobotWriter(BasePredictionWriter):
         run = {"model": model_fingerprint(_Float32Weights(pl_module)),
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
                "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
-               "node_temperature": None, "redraws": int(hp.predict_redraws)}
+               "node_temperature": None, "redraws": int(hp.predict_redraws),
+               "prior": "mixture" if pl_module.sampling_mixture() is not None else "standard"}
         refused = None
         if trainer.is_global_zero:
             try:

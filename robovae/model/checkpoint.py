@@ -128,8 +128,8 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> Ro
     check_current_model(ckpt, path)
     try:
         model = RoboVAE(**hp)
+        model.on_load_checkpoint(ckpt)  # first, as Lightning does: it may complete the weights
         model.load_state_dict(ckpt["state_dict"])
-        model.on_load_checkpoint(ckpt)
     except Exception as e:  # weights of another model (shapes, names), bad hyperparameters
         raise refusal(path, e) from None
     return model.to(map_location).eval()

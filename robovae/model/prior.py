@@ -30,18 +30,27 @@ class PriorModel(Protocol):
                      temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
         """``(z, node_noise)`` of robots ``indices`` of a run with ``seed``."""
 
+    def prior_latent(self, seed: int, index: int, temperature: float = 1.0,
+                     draw: int = 0) -> torch.Tensor:
+        """The latent of robot ``index`` (draw ``draw``) from the model's sampling prior."""
+
     def decode(self, z: torch.Tensor, node_noise: torch.Tensor | None = None
                ) -> list[RobotData]:
         """Robot graphs decoded from latents ``z``."""
 
 
+def latent_rng(seed: int, index: int, draw: int = 0) -> np.random.Generator:
+    """The generator of robot ``index``'s latent in a run with ``seed``: NumPy PCG64 seeded by
+    the pair ``(seed, index)``; redraw ``draw > 0`` by ``(seed, index, 2, draw)``."""
+    key = [seed, index] if draw == 0 else [seed, index, 2, draw]
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(key)))
+
+
 def latent(seed: int, index: int, dim: int, temperature: float = 1.0,
            draw: int = 0) -> torch.Tensor:
-    """The latent of robot ``index`` of a run with ``seed``: ``N(0, T² I)``, ``[dim]`` float32,
-    from its own generator (NumPy PCG64 seeded by the pair ``(seed, index)``; redraw ``draw > 0``
-    by ``(seed, index, 2, draw)``)."""
-    key = [seed, index] if draw == 0 else [seed, index, 2, draw]
-    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(key)))
+    """The latent of robot ``index`` of a run with ``seed`` under the standard normal prior:
+    ``N(0, T² I)``, ``[dim]`` float32, from :func:`latent_rng`."""
+    rng = latent_rng(seed, index, draw)
     return torch.from_numpy(rng.standard_normal(dim).astype(np.float32)) * temperature
 
 
@@ -79,7 +88,7 @@ def draw_robots(model: PriorModel, seed: int, indices: Sequence[int], temperatur
     for k in range(1, redraws + 1):
         if not todo:
             break
-        zk = torch.stack([latent(seed, int(indices[b]), z.shape[1], temperature, draw=k)
+        zk = torch.stack([model.prior_latent(seed, int(indices[b]), temperature, draw=k)
                           for b in todo]).to(z)
         again = model.decode(zk, node_noise=noise[todo])
         for b, zb, g in zip(todo, zk, again):

@@ -37,9 +37,10 @@ from robovae.data.normalizer import Normalizer
 from robovae.errors import RobovaeError
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
+from robovae.model.latent_mixture import LatentMixture, fit_to_robots
 from robovae.model.loss import vae_loss
 from robovae.model.messages import level_messages
-from robovae.model.prior import draw_robots, latent, node_noise
+from robovae.model.prior import draw_robots, latent, latent_rng, node_noise
 from robovae.model.tree import TreeSchedule, tree_schedule
 
 
@@ -53,6 +54,10 @@ def _draw(mu: Tensor, logvar: Tensor, sample: bool,
         return reparametrize(mu, logvar)
     eps = torch.randn(mu.shape, generator=generator, dtype=mu.dtype, device=mu.device)
     return mu + eps * torch.exp(0.5 * logvar)
+
+
+#: Sampling priors of :meth:`RoboVAE.sample_prior`.
+PRIORS = ("mixture", "standard")
 
 
 class RoboVAE(L.LightningModule):
@@ -83,6 +88,11 @@ class RoboVAE(L.LightningModule):
             every node a posterior, the decoder reads it in the node's feature head only and
             learns a conditional prior for generation (:mod:`robovae.model.decoder`).
         beta_nodes: weight of the node latents' KL (``None``: follow β and its warm-up).
+        prior_components: components of the :class:`~robovae.model.latent_mixture.
+            LatentMixture` fitted to the training robots' posterior means at the end of
+            training (0: none).
+        prior: the sampling prior of :meth:`sample_prior` and :meth:`sample`: ``mixture``
+            (that mixture, when fitted) or ``standard`` (``N(0, I)``, the VAE's own prior).
     """
 
     def __init__(
@@ -103,9 +113,15 @@ class RoboVAE(L.LightningModule):
         node_latent_dim: int = 32,
         beta_nodes: float | None = None,
         tree_latent_dim: int | None = None,
+        prior_components: int = 64,
+        prior: str = "mixture",
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
+        if prior not in PRIORS:
+            raise ValueError(f"robovae: prior must be one of {', '.join(PRIORS)}, got {prior!r}")
+        self.latent_mixture = LatentMixture(latent_dim, prior_components) \
+            if prior_components > 0 else None
         fs = get_feature_set(feature_set)
         self.feature_set = fs
         self.normalizer = Normalizer(fs)
@@ -144,8 +160,13 @@ class RoboVAE(L.LightningModule):
         checkpoint["robovae_training_robots"] = self.training_robots
 
     def on_load_checkpoint(self, checkpoint: dict) -> None:
-        """Restore the training robots' records saved by :meth:`on_save_checkpoint`."""
+        """Restore the training robots' records saved by :meth:`on_save_checkpoint`; a
+        checkpoint from before the latent mixture loads with the mixture unfitted."""
         self.training_robots = checkpoint.get("robovae_training_robots", [])
+        state = checkpoint.get("state_dict", {})
+        if self.latent_mixture is not None and "latent_mixture.fitted" not in state:
+            state.update({f"latent_mixture.{k}": v
+                          for k, v in self.latent_mixture.state_dict().items()})
 
     def normalized(self, batch: Batch) -> Batch:
         """A shallow copy of ``batch`` whose ``x`` is in model units, plus the batch's
@@ -185,6 +206,23 @@ class RoboVAE(L.LightningModule):
             if isinstance(sampler, RandomSampler):
                 sampler.generator = torch.Generator().manual_seed(
                     run_seed(SHUFFLE, self.current_epoch, k, self.global_rank))
+
+    def on_train_batch_end(self, outputs, batch, batch_idx: int) -> None:
+        """After the last step of the last epoch (before its validation and checkpoint), fit
+        the sampling mixture to the training robots' latents
+        (:func:`~robovae.model.latent_mixture.fit_to_robots`; every process the same robots)."""
+        trainer = self.trainer
+        if self.latent_mixture is None or trainer.max_epochs is None \
+                or self.current_epoch < trainer.max_epochs - 1 or not trainer.is_last_batch:
+            return
+        robots = getattr(getattr(trainer, "datamodule", None), "train_set", None)
+        if robots is None:
+            robots = getattr(trainer.train_dataloader, "dataset", None)
+        if robots is not None:
+            was_training = self.training
+            self.eval()
+            fit_to_robots(self.latent_mixture, self.encode, robots)
+            self.train(was_training)
 
     def forward(self, batch: Batch, sample: bool = True,
                 generator: torch.Generator | None = None) -> dict[str, Tensor]:
@@ -419,18 +457,41 @@ class RoboVAE(L.LightningModule):
         ``[B, max_nodes, node_latent_dim]`` (:func:`~robovae.model.prior.node_noise`), both in
         the model's dtype; robot ``i`` draws the same values in any batch."""
         hp = self.hparams
-        z = torch.stack([latent(seed, int(i), hp.latent_dim, temperature) for i in indices])
+        z = torch.stack([self.prior_latent(seed, int(i), temperature) for i in indices])
         noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, hp.node_latent_dim,
                                         temperature) for i in indices])
         return z.to(self.dtype), noise.to(self.dtype)
 
+    def sampling_mixture(self) -> LatentMixture | None:
+        """The sampling mixture when the model samples from one (``prior``) and has it."""
+        mix = self.latent_mixture
+        use = self.hparams.get("prior", "standard") == "mixture"
+        return mix if use and mix is not None and bool(mix.fitted) else None
+
+    def prior_latent(self, seed: int, index: int, temperature: float = 1.0,
+                     draw: int = 0) -> Tensor:
+        """Robot ``index``'s latent ``[latent_dim]`` (float32) of a run with ``seed``, draw
+        ``draw``, from the sampling prior (``prior``): the fitted mixture, else ``N(0, T² I)``
+        (:func:`~robovae.model.prior.latent`); each from the robot's own generator
+        (:func:`~robovae.model.prior.latent_rng`)."""
+        mix = self.sampling_mixture()
+        if mix is None:
+            return latent(seed, index, self.hparams.latent_dim, temperature, draw)
+        return mix.draw(latent_rng(seed, index, draw), temperature)
+
     @torch.no_grad()
     def sample(self, n: int, temperature: float = 1.0,
                generator: torch.Generator | None = None) -> list[RobotData]:
-        """Decode ``n`` latents drawn from the prior ``N(0, temperature² I)``, every node's
-        latent from its conditional prior at the same temperature."""
+        """Decode ``n`` latents drawn from the sampling prior (:meth:`prior_latent`, at
+        ``temperature``), every node's latent from its conditional prior at the same
+        temperature."""
         hp = self.hparams
         z = torch.randn(n, hp.latent_dim, generator=generator) * temperature
+        mix = self.sampling_mixture()
+        if mix is not None:
+            k = torch.multinomial(mix.weights.float().cpu(), n, replacement=True,
+                                  generator=generator)
+            z = mix.means[k].float().cpu() + z * mix.stds[k].float().cpu()
         noise = torch.randn(n, hp.max_nodes, hp.node_latent_dim,
                             generator=generator) * temperature
         return self.decode(z, node_noise=noise)
