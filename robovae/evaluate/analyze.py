@@ -54,6 +54,7 @@ from robovae.evaluate.quality.populations import (
     corpus_files,
     procedural_files,
     real_robot_files,
+    source_file,
 )
 from robovae.evaluate.quality.report import contact_sheets, quality_table
 from robovae.evaluate.tables import format_table
@@ -209,9 +210,15 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     entropy_kw = {"seconds": entropy_seconds}
     result: dict = {"checkpoint": str(ckpt), "feature_set": model.feature_set.name,
                     "latent_dim": int(model.hparams.latent_dim)}
+    # the robots measured: the first `behaviour` with a source, procedural ones written from
+    # their seeds (source_file)
+    sources = [getattr(g, "source", None) for g in train]
+    with_source = [i for i, src in enumerate(sources) if src][: max(behaviour, 0)]
+    train_files: list[str | None] = [None] * len(train)
+    for i in with_source:
+        train_files[i] = source_file(sources[i], root)
     result["training"] = {"what": what, **_population(
-        model, train, [getattr(g, "source", None) for g in train], behaviour, jobs,
-        entropy_kw=entropy_kw)}
+        model, train, train_files, behaviour, jobs, entropy_kw=entropy_kw)}
     sample_paths: list[str] = []
     if samples is not None:
         files = sample_files(samples)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -172,3 +173,14 @@ def test_sample_files_with_and_without_manifest(tmp_path) -> None:
     assert len(sample_files(tmp_path, valid_only=False)) == 3
     with pytest.raises(RobovaeError):
         sample_files(tmp_path / "nope")
+
+
+def test_analyze_measures_procedural_training_robots(trained, tmp_path) -> None:
+    """Training robots built in memory from ``procedural:<class>:<seed>`` have no file: the
+    behaviour rows measure the robot written from its seed (``source_file``), not an error."""
+    _, _, ckpt = trained
+    res = analyze(ckpt, sources=["procedural:n=2,seed=0"], root=tmp_path, behaviour=2,
+                  permutations=0, entropy_seconds=0.5, jobs=1, progress=False)
+    rows = res["training"]["behaviour"]
+    assert len(rows) == 2 and not any("error" in r for r in rows)
+    assert all(Path(r["robot"]).is_file() for r in rows)

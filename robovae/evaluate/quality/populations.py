@@ -24,7 +24,7 @@ from pathlib import Path
 
 from robovae.data.procedural import parse_procedural, procedural_graphs, write_procedural
 
-__all__ = ["HOLDOUT_SEED", "corpus_files", "procedural_files", "real_robot_files",
+__all__ = ["HOLDOUT_SEED", "corpus_files", "procedural_files", "real_robot_files", "source_file",
            "written_files"]
 
 #: First procedural seed of the quality table's generator column (beyond every config's
@@ -49,31 +49,33 @@ def procedural_files(n: int, root: str | os.PathLike = "data_cache", seed: int =
     return write_procedural(Path(root) / "raw" / f"quality_procedural_s{seed}", n, seed=seed)
 
 
+def source_file(source: str, root: str | os.PathLike = "data_cache") -> str:
+    """The robot file of a training graph's ``source``: a file path as it is, and for
+    ``procedural:<class>:<seed>`` the robot written once into ``root/raw/quality_corpus``
+    from its seed (reused after)."""
+    from robovae.data.procedural.robots import procedural_spec
+
+    if not source.startswith("procedural:"):
+        return source
+    _, kind, seed = source.split(":")
+    path = Path(root) / "raw" / "quality_corpus" / f"proc_{kind}_{int(seed):06d}.xml"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(procedural_spec(int(seed), kind).to_xml())
+    return str(path)
+
+
 def corpus_files(sources: Sequence[str | None], names: Sequence[str], n: int,
                  root: str | os.PathLike = "data_cache") -> tuple[list[str], list[str]]:
     """Files and names of ``n`` training robots, every ``len/n``-th of ``sources`` (the graphs'
-    ``source``: a file path or ``procedural:<class>:<seed>``; robots without one are skipped).
-    Procedural robots are written once into ``root/raw/quality_corpus`` from their seed."""
-    from robovae.data.procedural.robots import procedural_spec
-
+    ``source``: a file path or ``procedural:<class>:<seed>``, :func:`source_file`; robots
+    without one are skipped)."""
     known = [(s, m) for s, m in zip(sources, names) if s]
     if n <= 0 or not known:
         return [], []
     step = max(1, len(known) // n)
     picked = known[::step][:n]
-    out = Path(root) / "raw" / "quality_corpus"
-    files = []
-    for src, _ in picked:
-        if src.startswith("procedural:"):
-            _, kind, seed = src.split(":")
-            path = out / f"proc_{kind}_{int(seed):06d}.xml"
-            if not path.is_file():
-                out.mkdir(parents=True, exist_ok=True)
-                path.write_text(procedural_spec(int(seed), kind).to_xml())
-            files.append(str(path))
-        else:
-            files.append(src)
-    return files, [m for _, m in picked]
+    return [source_file(src, root) for src, _ in picked], [m for _, m in picked]
 
 
 def written_files(n: int, root: str | os.PathLike = "data_cache", seed: int = 0,
