@@ -61,9 +61,11 @@ class Normalizer(nn.Module):
         """Fit ``mu``/``sigma`` per column over the nodes that own it (training split only);
         ``sigma_c`` is at least the feature's ``min_std`` (1 for a constant column).
 
-        Two streaming passes over ``chunk`` rows at a time (sums, then squared deviations and
-        the range), so fitting on millions of nodes holds a few chunk-sized temporaries, never
-        copies of ``x``. ``rows`` (bool, one per row of ``x``) selects the nodes to fit on.
+        Two streaming passes over ``chunk`` rows at a time (sums and the range of the
+        transformed values, then squared deviations), so fitting on millions of nodes holds a
+        few chunk-sized temporaries, never copies of ``x``. ``rows`` (bool, one per row of
+        ``x``) selects the nodes to fit on. The range in model units is that of the
+        transformed values mapped by ``(t - mu) / sigma``, which keeps their order.
         """
         d, n = x.shape[1], x.shape[0]
 
@@ -79,9 +81,12 @@ class Normalizer(nn.Module):
                 yield torch.where(own, self._t(xs.float()), torch.zeros(())), own
 
         count, total = torch.zeros(d, dtype=torch.float64), torch.zeros(d, dtype=torch.float64)
+        t_low, t_high = torch.full((d,), torch.inf), torch.full((d,), -torch.inf)
         for t, own in chunks():
             count += own.sum(0)
             total += t.double().sum(0)
+            t_low = torch.minimum(t_low, torch.where(own, t, torch.inf).amin(0))
+            t_high = torch.maximum(t_high, torch.where(own, t, -torch.inf).amax(0))
         mean = (total / count.clamp_min(1.0)).float()
         sq = torch.zeros(d, dtype=torch.float64)
         for t, own in chunks():
@@ -91,14 +96,9 @@ class Normalizer(nn.Module):
         std = torch.maximum(std, self.min_std)
         self.mean.copy_(torch.where(self.is_cat, torch.zeros_like(mean), mean))
         self.std.copy_(torch.where(self.is_cat, torch.ones_like(std), std))
-        low, high = torch.full((d,), torch.inf), torch.full((d,), -torch.inf)
-        for t, own in chunks():
-            y = (t - self.mean) / self.std
-            low = torch.minimum(low, torch.where(own, y, torch.inf).amin(0))
-            high = torch.maximum(high, torch.where(own, y, -torch.inf).amax(0))
         unseen = count == 0
-        self.low.copy_(torch.where(unseen, torch.full_like(low, -torch.inf), low))
-        self.high.copy_(torch.where(unseen, torch.full_like(high, torch.inf), high))
+        self.low.copy_(torch.where(unseen, -torch.inf, (t_low - self.mean) / self.std))
+        self.high.copy_(torch.where(unseen, torch.inf, (t_high - self.mean) / self.std))
         self.fitted.fill_(True)
         return self
 

@@ -176,6 +176,12 @@ class GenerationReport:
         return "\n".join(lines)
 
 
+def prior_name(model: RoboVAE) -> str:
+    """The prior a model samples from, as ``run.json`` records it: ``mixture`` when it has a
+    fitted mixture and samples from it, else ``standard``."""
+    return "mixture" if model.sampling_mixture() is not None else "standard"
+
+
 def generate(
     model: RoboVAE | str | Path,
     n: int,
@@ -231,7 +237,7 @@ def generate(
     run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
            "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
            "node_temperature": node_temperature, "redraws": redraws,
-           "prior": "mixture" if model.sampling_mixture() is not None else "standard"}
+           "prior": prior_name(model)}
     if validate and controls != "zero":  # folders validated with zero controls resume as before
         run["validation"] = controls
     claim(out, run, overwrite)

@@ -36,6 +36,7 @@ from robovae.generate.pipeline import (
     claim,
     model_fingerprint,
     open_manifest,
+    prior_name,
     read_manifest,
     summarize,
     worker_pool,
@@ -95,7 +96,7 @@ class RobotWriter(BasePredictionWriter):
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
                "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
                "node_temperature": None, "redraws": int(hp.predict_redraws),
-               "prior": "mixture" if pl_module.sampling_mixture() is not None else "standard"}
+               "prior": prior_name(pl_module)}
         refused = None
         if trainer.is_global_zero:
             try:
