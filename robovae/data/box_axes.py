@@ -19,7 +19,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-__all__ = ["axes_to_quat", "mirror_axes", "quat_rotations", "quat_to_axes"]
+__all__ = ["axes_to_quat", "axes_to_quats", "mirror_axes", "quat_rotations", "quat_to_axes"]
 
 _I, _J = (0, 1, 2, 0, 0, 1), (0, 1, 2, 1, 2, 2)
 
@@ -42,23 +42,27 @@ def quat_to_axes(quat: np.ndarray) -> np.ndarray:
     return a[:, _I, _J]
 
 
-def _matrix(axes: np.ndarray) -> np.ndarray:
-    a = np.zeros((3, 3))
-    a[_I, _J] = axes
-    a[_J, _I] = axes
-    return a
-
-
 def axes_to_quat(axes: np.ndarray) -> np.ndarray:
     """The orientation ``[4]`` (``w >= 0``) of a box from the six entries of its (possibly
     regressed) axis matrix: columns ``u1`` (largest eigenvalue), ``u2 = u3 × u1`` and ``u3``
-    (smallest eigenvalue), a right-handed frame."""
-    _, vecs = np.linalg.eigh(_matrix(np.asarray(axes, float)))
-    u1, u3 = vecs[:, 2], vecs[:, 0]
-    rot = np.stack([u1, np.cross(u3, u1), u3], axis=1)
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, rot.flatten())
-    return quat if quat[0] >= 0 else -quat
+    (smallest eigenvalue), a right-handed frame. One box of :func:`axes_to_quats`."""
+    return axes_to_quats(np.asarray(axes, float)[None])[0]
+
+
+def axes_to_quats(axes: np.ndarray) -> np.ndarray:
+    """:func:`axes_to_quat` of ``[n, 6]`` axis matrices at once: ``[n, 4]`` (one batched
+    eigendecomposition)."""
+    axes = np.asarray(axes, float).reshape(-1, 6)
+    a = np.zeros((len(axes), 3, 3))
+    a[:, _I, _J] = axes
+    a[:, _J, _I] = axes
+    _, vecs = np.linalg.eigh(a)
+    u1, u3 = vecs[:, :, 2], vecs[:, :, 0]
+    rot = np.stack([u1, np.cross(u3, u1), u3], axis=2).reshape(-1, 9)
+    quats = np.zeros((len(axes), 4))
+    for k in range(len(axes)):
+        mujoco.mju_mat2Quat(quats[k], rot[k])
+    return np.where(quats[:, :1] >= 0, quats, -quats)
 
 
 def mirror_axes(axes: np.ndarray, m: np.ndarray) -> np.ndarray:

@@ -55,7 +55,7 @@ from typing import Literal
 import mujoco
 import numpy as np
 
-from robovae.data.box_axes import axes_to_quat
+from robovae.data.box_axes import axes_to_quats
 from robovae.data.features import GEOM, GEOM_TYPE_IDS, GEOM_TYPES, JOINT, LINK, FeatureSet
 from robovae.data.graph import RobotData
 from robovae.generate.bodies import joint_types, link_structure
@@ -123,6 +123,7 @@ class SpecBuilder:
         self.self_collision = self_collision
         self.fixes: list[str] = []
         self.free_bodies: list[mujoco.MjsBody] = []
+        self._shapes: dict[int, tuple] | None = None  # link -> (size, box, thickness)
 
     def get(self, i: int, key: str) -> np.ndarray:
         """The columns of feature ``key`` of node ``i`` (rounded as MJCF writes them)."""
@@ -226,14 +227,22 @@ class SpecBuilder:
     def _link_shape(self, i: int
                     ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
         """Link ``i``'s ``link.size`` (zeros when absent) and its collision box ``(centre, quat,
-        half-sizes)``, if the set has one."""
-        size = np.maximum(self.get(i, "link.size"), 0.0) if self.has("link.size") \
-            else np.zeros(3)
-        box = None
-        if self.has("link.box_half"):
-            box = (np.array(self.vec(i, "link.box_pos")),
-                   axes_to_quat(self.get(i, "link.box_axes")),
-                   np.maximum(self.get(i, "link.box_half"), 0.0))
+        half-sizes)``, if the set has one; every link's computed at the first call (the box
+        orientations in one batch)."""
+        if self._shapes is None:
+            links = [k for k, t in enumerate(self.types) if t == LINK]
+            quats = axes_to_quats(self.x[links, self.fs.slice("link.box_axes")]) \
+                if self.has("link.box_half") and links else None
+            self._shapes = {}
+            for n, k in enumerate(links):
+                size = np.maximum(self.get(k, "link.size"), 0.0) if self.has("link.size") \
+                    else np.zeros(3)
+                box = None
+                if quats is not None:
+                    box = (np.array(self.vec(k, "link.box_pos")), quats[n],
+                           np.maximum(self.get(k, "link.box_half"), 0.0))
+                self._shapes[k] = (size, box, thickness(size, box))
+        size, box, _ = self._shapes[i]
         return size, box
 
     def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
@@ -243,7 +252,8 @@ class SpecBuilder:
             mujoco.mju_rotVecQuat(t, self._anchor(c),
                                   np.array(self.vec(c, "link.quat")))
             t += np.array(self.vec(c, "link.pos"))
-            children.append((t, thickness(*self._link_shape(c))))
+            self._link_shape(c)
+            children.append((t, self._shapes[c][2]))
         size, box = self._link_shape(i)
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
                          self.anc[i] < 0, box)
