@@ -7,10 +7,13 @@ one process and ``--threads`` torch threads, once with Lightning's DDP over ``--
 processes (one thread each). The dataset is built first (and cached), so the rows time training
 alone. Columns: wall time of the whole command (start-up, data loading, the epoch, the final
 checkpoint), wall time of the training epoch alone (:class:`EpochClock`, a callback the command
-is given, on rank 0), CPU time of the processes the command waited for, peak RSS (the largest
-of the processes, and their sum for DDP, from ``ps``), the peak of the processes' summed PSS
-(``/proc/PID/smaps_rollup``: the memory-mapped dataset the DDP processes share counted once,
-the machine's memory the command holds), robots per second of the epoch.
+is given, on rank 0: from the epoch's start to the end of its last training step) and, apart,
+what the model does once after that last step (the sampling mixture's fit over the training
+robots, :class:`~robovae.model.latent_mixture.LatentMixture`), CPU time of the processes the
+command waited for, peak RSS (the largest of the processes, and their sum for DDP, from
+``ps``), the peak of the processes' summed PSS (``/proc/PID/smaps_rollup``: the memory-mapped
+dataset the DDP processes share counted once, the machine's memory the command holds), robots
+per second of the epoch.
 
     PYTHONPATH=. python benchmarks/epoch_speed.py --n 100000 --config configs/large.yaml
 """
@@ -33,20 +36,29 @@ from robovae.data.dataset import RobotDataset
 from robovae.evaluate.tables import format_table
 
 REPO = Path(__file__).resolve().parents[1]
-#: The line :class:`EpochClock` prints to stderr.
+#: The lines :class:`EpochClock` prints to stderr.
 EPOCH_TAG = "epoch_seconds="
+AFTER_TAG = "after_last_step_seconds="
 
 
 class EpochClock(L.Callback):
-    """Prints ``epoch_seconds=<wall s>`` of each training epoch to stderr (rank 0)."""
+    """Prints ``epoch_seconds=<wall s>`` of each training epoch (start to the end of its last
+    training step) and ``after_last_step_seconds=<wall s>`` (the rest of the epoch: the
+    module's own end-of-batch work on the last step, which Lightning calls after the
+    callbacks', e.g. the mixture fit) to stderr (rank 0)."""
 
     def on_train_epoch_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
-        self.start = time.perf_counter()
+        self.start = self.last = time.perf_counter()
+
+    def on_train_batch_end(self, trainer: L.Trainer, pl_module: L.LightningModule, outputs,
+                           batch, batch_idx: int) -> None:
+        self.last = time.perf_counter()
 
     def on_train_epoch_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
         if trainer.is_global_zero:
-            print(f"{EPOCH_TAG}{time.perf_counter() - self.start:.1f}", file=sys.stderr,
-                  flush=True)
+            now = time.perf_counter()
+            print(f"{EPOCH_TAG}{self.last - self.start:.1f}\n{AFTER_TAG}{now - self.last:.1f}",
+                  file=sys.stderr, flush=True)
 
 
 def _pss(pid: int) -> int:
@@ -85,8 +97,9 @@ def _tree_rss(pid: int) -> tuple[int, int, int]:
     return (max(sizes), sum(sizes), pss) if sizes else (0, 0, 0)
 
 
-def _run(args: list[str], env: dict) -> tuple[float, float, float, list[int]]:
-    """Wall, epoch wall, CPU (children) and the peaks of :func:`_tree_rss` of one CLI run."""
+def _run(args: list[str], env: dict) -> tuple[float, float, float, float, list[int]]:
+    """Wall, epoch wall, wall after the last step, CPU (children) and the peaks of
+    :func:`_tree_rss` of one CLI run."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "robovae.cli", *args], env=env,
@@ -107,9 +120,11 @@ def _run(args: list[str], env: dict) -> tuple[float, float, float, list[int]]:
         raise SystemExit(f"robovae fit failed:\n{err[-3000:]}")
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
-    epochs = [float(line[len(EPOCH_TAG):]) for line in err.splitlines()
-              if line.startswith(EPOCH_TAG)]
-    return wall, epochs[-1] if epochs else float("nan"), cpu, peak
+    def last(tag: str) -> float:
+        vals = [float(line[len(tag):]) for line in err.splitlines() if line.startswith(tag)]
+        return vals[-1] if vals else float("nan")
+
+    return wall, last(EPOCH_TAG), last(AFTER_TAG), cpu, peak
 
 
 def main() -> None:
@@ -145,15 +160,15 @@ def main() -> None:
                 continue
             env = {**os.environ, "OMP_NUM_THREADS": str(threads), "PYTHONPATH": str(REPO),
                    "PYTHONWARNINGS": "ignore"}
-            wall, epoch, cpu, (big, total, pss) = _run([*common, *extra], env)
+            wall, epoch, after, cpu, (big, total, pss) = _run([*common, *extra], env)
             procs = 1 if name == "single" else args.devices
             rows.append([f"{name} ({procs} x {threads} thread)", len(ds), f"{wall:.0f}",
-                         f"{epoch:.0f}", f"{cpu:.0f}", f"{big / 2**30:.2f}",
+                         f"{epoch:.0f}", f"{after:.0f}", f"{cpu:.0f}", f"{big / 2**30:.2f}",
                          f"{total / 2**30:.2f}", f"{pss / 2**30:.2f}",
                          f"{len(ds) / epoch:.0f}"])
     print(f"dataset {source}: {len(ds)} robots, loaded/built in {build:.1f} s; "
           f"load average {os.getloadavg()[0]:.1f}")
-    cols = ["run", "robots", "wall s (whole command)", "epoch s", "CPU s",
+    cols = ["run", "robots", "wall s (whole command)", "epoch s", "after last step s", "CPU s",
             "peak RSS GB", "summed RSS GB", "summed PSS GB", "robots/s (epoch)"]
     print(format_table([dict(zip(cols, r)) for r in rows], cols))
 
