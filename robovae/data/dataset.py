@@ -157,6 +157,21 @@ class RobotDataset(InMemoryDataset):
         """Nothing to download: sources are local files, packages or generators."""
         pass
 
+    @classmethod
+    def save(cls, data_list: Sequence[RobotData], path: str) -> None:
+        """Collate ``data_list`` and write the cache atomically: to a temporary file beside
+        ``path``, then ``os.replace``. A process that has the old file memory-mapped
+        (:meth:`load`) keeps reading the old file's pages, never a half-written one (rewriting
+        it in place, as ``force_reload`` would, could end such a process with SIGBUS)."""
+        data, slices = cls.collate(data_list)
+        tmp = f"{path}.{os.getpid()}.tmp"
+        try:
+            torch.save((data.to_dict(), slices, data.__class__), tmp)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
     def load(self, path: str, data_cls: type = RobotData) -> None:
         """Load the processed cache memory-mapped (``torch.load(mmap=True)``): the collated
         tensors stay in the page cache, read on demand and shared by every process that maps

@@ -36,6 +36,21 @@ def test_cache_is_reused_and_rebuilt_on_change(tmp_path, menagerie_dir):
     assert d.processed_paths != a.processed_paths
 
 
+def test_force_reload_replaces_the_cache_file_a_reader_has_mapped(tmp_path, menagerie_dir):
+    """A rebuilt cache is a new file moved into place: a dataset that has the old one
+    memory-mapped keeps its data, and no temporary file is left behind."""
+    src = tmp_path / "robots"
+    src.mkdir()
+    shutil.copy(menagerie_dir / "unitree_go2" / "go2.xml", src / "go2.xml")
+    old = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False)
+    path = old.processed_paths[0]
+    inode, x = os.stat(path).st_ino, old[0].x.clone()
+    new = RobotDataset(tmp_path / "c", [f"dir:{src}"], progress=False, force_reload=True)
+    assert new.processed_paths[0] == path and os.stat(path).st_ino != inode
+    assert torch.equal(old[0].x, x) and torch.equal(new[0].x, x)
+    assert not [f for f in os.listdir(os.path.dirname(path)) if f.endswith(".tmp")]
+
+
 def test_cache_key_holds_the_reader_code(tmp_path, menagerie_dir, monkeypatch):
     """Another version of the code that reads files into graphs (features, mjcf, ...) does
     not reuse a cache: a feature column added or read differently would come back stale."""
