@@ -3,9 +3,12 @@
 For a checkpoint with latent dimension ``d``, task ``T`` (:data:`robovae.design.score.TASKS`)
 and a budget of ``N`` evaluations per method, three methods run side by side in one run:
 
-- ``cma``: CMA-ES (the ``cmaes`` package) over ``z in R^d``, started at the prior mean
-  ``m_0 = 0`` with step size ``sigma_0 = 1`` (the prior's std), default population
-  ``4 + floor(3 ln d)``, seeded with ``seed``; it minimises ``-score``;
+- ``cma``: CMA-ES (the ``cmaes`` package) over ``z in R^d``, started with the moments of the
+  sampling prior: mean ``m_0`` and covariance ``C_0`` of the fitted latent mixture
+  (:meth:`~robovae.model.latent_mixture.LatentMixture.moments`), or ``0`` and ``I`` for
+  ``N(0, I)``, step size ``sigma_0 = 1``, so that its first generation is spread like the prior
+  samples it competes with; default population ``4 + floor(3 ln d)``, seeded with ``seed``; it
+  minimises ``-score``;
 - ``prior``: random samples of the model's sampling prior, what ``robovae generate`` draws
   (:meth:`robovae.model.vae.RoboVAE.prior_latent`: the fitted latent mixture, or
   ``N(0, I)``; generator seeded by ``(seed, i)``);
@@ -117,10 +120,12 @@ class _Run:
         self.floating = task != "reach"
         self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
                          "latent_dim": self.dim, "score_seed": 0,
-                         "score_version": SCORE_VERSION}
+                         "score_version": SCORE_VERSION, "cma_start": "prior moments"}
         self.log = {"settings": self.settings, "budget": budget,
                     "evaluations": {m: [] for m in METHODS}}
-        self.cma = CMA(mean=np.zeros(self.dim), sigma=1.0, seed=seed)
+        mix = model.sampling_mixture()
+        mean, cov = mix.moments() if mix is not None else (np.zeros(self.dim), np.eye(self.dim))
+        self.cma = CMA(mean=mean, sigma=1.0, cov=cov, seed=seed)
         self.pending: list[dict] = []  # evaluated part of the CMA-ES generation being asked
 
     def load(self) -> None:

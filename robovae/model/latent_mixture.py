@@ -108,6 +108,20 @@ class LatentMixture(nn.Module):
         eps = torch.from_numpy(rng.standard_normal(self.means.shape[1]).astype(np.float32))
         return self.means[k].float().cpu() + temperature * self.stds[k].float().cpu() * eps
 
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean ``[D]`` and covariance ``[D, D]`` (float64) of the mixture:
+
+        .. math::  m = \\sum_k \\pi_k m_k, \\qquad
+                   C = \\sum_k \\pi_k (\\mathrm{diag}(s_k^2) + m_k m_k^\\top) - m m^\\top
+        """
+        w = self.weights.double().cpu().numpy()
+        w = w / w.sum()
+        means = self.means.double().cpu().numpy()
+        var = self.stds.double().cpu().numpy() ** 2
+        m = w @ means
+        cov = np.diag(w @ var) + (means * w[:, None]).T @ means - np.outer(m, m)
+        return m, 0.5 * (cov + cov.T)
+
 
 @torch.no_grad()
 def fit_to_robots(mixture: LatentMixture, encode: Callable[[Batch], tuple[Tensor, Tensor]],

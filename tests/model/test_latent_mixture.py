@@ -46,6 +46,19 @@ def test_draws_are_per_generator_and_temperature_scales_the_spread():
     assert torch.allclose(hot - cold, 2.0 * (one - cold))
 
 
+def test_moments_are_those_of_the_draws():
+    mix = LatentMixture(3, 2)
+    mix.weights.copy_(torch.tensor([0.25, 0.75]))
+    mix.means.copy_(torch.tensor([[1.0, 2.0, 3.0], [-1.0, 0.0, 1.0]]))
+    mix.stds.copy_(torch.tensor([[0.5, 0.2, 1.0], [0.3, 0.3, 0.3]]))
+    mean, cov = mix.moments()
+    rng = np.random.default_rng(0)
+    z = torch.stack([mix.draw(rng) for _ in range(20000)]).double().numpy()
+    assert np.allclose(mean, z.mean(0), atol=0.03)
+    assert np.allclose(cov, np.cov(z.T), atol=0.05)
+    assert cov[0, 2] > 0.5  # the components' means correlate the coordinates
+
+
 def test_fewer_latents_than_components_is_refused():
     with pytest.raises(ValueError, match="at least 5 latents"):
         LatentMixture(2, 5).fit(torch.zeros(3, 2))
@@ -118,3 +131,20 @@ def test_generate_records_the_prior_it_used(mixture_model, tmp_path):
     for r in recs["mix"]:
         want = model.latent_mixture.draw(latent_rng(0, r["index"], r["draw"]))
         assert np.allclose(r["latent"], want.numpy(), atol=1e-6)
+
+
+def test_optimize_starts_cma_with_the_prior_moments(mixture_model, tmp_path):
+    """CMA-ES over z starts where the sampling prior puts robots: the mixture's mean and
+    covariance (N(0, I) without a mixture)."""
+    from robovae.design.optimize import _Run
+
+    model, _, _ = mixture_model
+    mean, cov = model.sampling_mixture().moments()
+    run = _Run(model, "walk", 4, tmp_path, seed=0, jobs=1, top=1)
+    assert np.allclose(run.cma.mean, mean)
+    assert run.settings["cma_start"] == "prior moments"
+    model.hparams.prior = "standard"
+    try:
+        assert np.allclose(_Run(model, "walk", 4, tmp_path, seed=0, jobs=1, top=1).cma.mean, 0)
+    finally:
+        model.hparams.prior = "mixture"
