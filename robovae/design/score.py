@@ -48,7 +48,7 @@ __all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score"
 
 #: Changes whenever a measure changes: an optimisation log of another version is not continued.
 #: 3: the walk score is the quality measure's gait search (issue 22).
-SCORE_VERSION = 3
+SCORE_VERSION = 4
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _BALL = int(mujoco.mjtJoint.mjJNT_BALL)

@@ -95,6 +95,32 @@ def test_a_gait_that_falls_stops_counting() -> None:
     assert 0.0 <= gait(quad, max_tilt=20.0, **FAST).speed <= free.speed
 
 
+def cart(lift_gear: float) -> mujoco.MjSpec:
+    """A 0.2 m box on x and z slides to the world, each with a motor: the z motor of gear
+    ``lift_gear`` (control range ``[0.9, 1]``) pushes it up whatever the gait (an external
+    force, standing in for numerical energy)."""
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="cart", pos=[0, 0, 0.1])
+    for name, axis in (("x", [1, 0, 0]), ("z", [0, 0, 1])):
+        body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1], mass=1.0)
+    for name, gear in (("x", 20.0), ("z", lift_gear)):
+        act = spec.add_actuator(target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.gear[0] = gear
+        if name == "z":
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [0.9, 1.0]
+    return spec
+
+
+def test_a_rollout_that_flies_does_not_count() -> None:
+    """The centre of mass may not rise more than half the extent: lifted gaits score 0 and
+    count as unstable, the same cart held down moves."""
+    grounded, flying = gait(cart(0.0), **FAST), gait(cart(200.0), **FAST)
+    assert grounded.speed > 0 and grounded.unstable == 0
+    assert flying.speed == 0.0 and flying.unstable == FAST["rollouts"]
+
+
 def test_a_robot_without_actuators_does_not_move() -> None:
     r = gait(stick(), **FAST)
     assert r.speed == 0.0 and math.isnan(r.frequency)

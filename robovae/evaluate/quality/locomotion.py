@@ -18,7 +18,11 @@ start is not locomotion) and the end, divided by the time in between and by the 
 ``L`` (the diagonal of its bounding box at ``qpos0``): extents per second; any direction counts
 as forward (a generated robot has no designated front). Rollouts that go unstable (non-finite
 state, or MuJoCo resetting it) or fall through the floor (root ending more than ``L`` below
-it: a robot without collision geoms) score 0 and count in ``GaitResult.unstable``.
+it: a robot without collision geoms) score 0 and count in ``GaitResult.unstable``, and so do
+rollouts that **fly**: the robot's centre of mass rises more than :data:`MAX_RISE` (half) of
+its extent above its height at rest at some 10 ms sample. Internal forces cannot lift a
+body's centre of mass; what lifts it that far without a jump is the simulator's numerical
+energy (strong motors on light, stiff chains), which an optimiser finds and exploits.
 :func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0. It
 is a random search: the number is a lower bound on what the body can do with such gaits,
 comparable between robots measured with the same budget and seed.
@@ -43,10 +47,14 @@ from mujoco import rollout
 from robovae.data.loading import capture_mujoco_warnings
 from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
-__all__ = ["FALL_SAMPLE_DT", "GaitResult", "gait", "gait_speed", "sinusoid_controls"]
+__all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "gait", "gait_speed",
+           "sinusoid_controls"]
 
-#: Seconds between the samples that look for a fall (``max_tilt``).
+#: Seconds between the samples that look for a fall (``max_tilt``) or a flight.
 FALL_SAMPLE_DT = 0.01
+#: A rollout whose centre of mass rises more than this share of the extent above its rest
+#: height flies (module docstring).
+MAX_RISE = 0.5
 
 
 @dataclass
@@ -84,17 +92,27 @@ def _root_pos(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root
     return data.xpos[root].copy()
 
 
-def _first_fall(model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray, root: int,
-                up_local: np.ndarray, cos_tilt: float) -> int | None:
-    """State index of the first 10 ms sample whose root up axis is tilted below ``cos_tilt``
-    (module docstring), None when the gait never falls."""
+def _com_z(model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray) -> float:
+    mass = model.body_mass[bodies]
+    return float(mass @ data.xipos[bodies, 2] / max(float(mass.sum()), 1e-12))
+
+
+def _scan(model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray, root: int,
+          up_local: np.ndarray, cos_tilt: float | None, com_limit: float
+          ) -> tuple[int | None, bool]:
+    """Every 10 ms sample of a rollout: the state index of the first fall (root up axis tilted
+    below ``cos_tilt``; None: never, or not checked) and whether the centre of mass rose above
+    ``com_limit`` before it (module docstring)."""
+    bodies = np.flatnonzero(model.body_rootid == model.body_rootid[root])
     every = max(1, round(FALL_SAMPLE_DT / model.opt.timestep))
     for k in range(every - 1, len(states), every):
         data.qpos[:] = states[k, 1:1 + model.nq]
         mujoco.mj_kinematics(model, data)
-        if (data.xmat[root].reshape(3, 3) @ up_local)[2] < cos_tilt:
-            return k
-    return None
+        if _com_z(model, data, bodies) > com_limit:
+            return None, True
+        if cos_tilt is not None and (data.xmat[root].reshape(3, 3) @ up_local)[2] < cos_tilt:
+            return k, False
+    return None, False
 
 
 def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
@@ -127,6 +145,8 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     data.qpos[:] = rest_pose(model)
     mujoco.mj_forward(model, data)
     up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
+    com_limit = _com_z(model, data, np.flatnonzero(model.body_rootid == model.body_rootid[root])) \
+        + MAX_RISE * st.extent
     cos_tilt = math.cos(math.radians(max_tilt)) if max_tilt is not None else None
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
@@ -145,10 +165,11 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
         if _root_pos(model, data, s[-1, 1:1 + model.nq], root)[2] < st.floor_z - st.extent:
             bad += 1  # fell through the floor (no collision geoms)
             continue
-        last = len(s) - 1
-        if cos_tilt is not None:
-            fell = _first_fall(model, data, s, root, up_local, cos_tilt)
-            last = last if fell is None else fell
+        fell, flew = _scan(model, data, s, root, up_local, cos_tilt, com_limit)
+        if flew:
+            bad += 1  # lifted by numerical energy, not walking
+            continue
+        last = len(s) - 1 if fell is None else fell
         if last <= first:  # fell before the distance counts
             continue
         start = _root_pos(model, data, s[first, 1:1 + model.nq], root)
