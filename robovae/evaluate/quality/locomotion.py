@@ -20,9 +20,11 @@ as forward (a generated robot has no designated front). Rollouts that go unstabl
 state, or MuJoCo resetting it) or fall through the floor (root ending more than ``L`` below
 it: a robot without collision geoms) score 0 and count in ``GaitResult.unstable``, and so do
 rollouts that **fly**: the robot's centre of mass rises more than :data:`MAX_RISE` (half) of
-its extent above its height at rest at some 10 ms sample. Internal forces cannot lift a
-body's centre of mass; what lifts it that far without a jump is the simulator's numerical
-energy (strong motors on light, stiff chains), which an optimiser finds and exploits.
+its extent above its height at rest at some 10 ms sample. Walking does not do that; leaping
+does (Menagerie's Spot, driven open loop by its strong position servos, leaves the ground in
+about half of the 64 gaits), and so does the simulator's numerical energy: a 77-body robot
+with motor gears up to 11,000 that CMA-ES over ``z`` found rose 98 m in 3 s without touching
+the floor, at 26 m/s.
 :func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0. It
 is a random search: the number is a lower bound on what the body can do with such gaits,
 comparable between robots measured with the same budget and seed.
