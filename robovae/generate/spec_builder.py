@@ -224,11 +224,11 @@ class SpecBuilder:
         return np.array(self.vec(chain[0], "joint.pos")) if chain \
             and self.jtypes[chain[0]] != "free" else np.zeros(3)
 
-    def _link_shape(self, i: int
-                    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
-        """Link ``i``'s ``link.size`` (zeros when absent) and its collision box ``(centre, quat,
-        half-sizes)``, if the set has one; every link's computed at the first call (the box
-        orientations in one batch)."""
+    def _link_shape(self, i: int) -> tuple[
+            np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None, float]:
+        """Link ``i``'s ``link.size`` (zeros when absent), its collision box ``(centre, quat,
+        half-sizes)`` if the set has one, and its thickness; every link's computed at the first
+        call (the box orientations in one batch)."""
         if self._shapes is None:
             links = [k for k, t in enumerate(self.types) if t == LINK]
             quats = axes_to_quats(self.x[links, self.fs.slice("link.box_axes")]) \
@@ -242,8 +242,7 @@ class SpecBuilder:
                     box = (np.array(self.vec(k, "link.box_pos")), quats[n],
                            np.maximum(self.get(k, "link.box_half"), 0.0))
                 self._shapes[k] = (size, box, thickness(size, box))
-        size, box, _ = self._shapes[i]
-        return size, box
+        return self._shapes[i]
 
     def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
         children = []
@@ -252,9 +251,8 @@ class SpecBuilder:
             mujoco.mju_rotVecQuat(t, self._anchor(c),
                                   np.array(self.vec(c, "link.quat")))
             t += np.array(self.vec(c, "link.pos"))
-            self._link_shape(c)
-            children.append((t, self._shapes[c][2]))
-        size, box = self._link_shape(i)
+            children.append((t, self._link_shape(c)[2]))
+        size, box, _ = self._link_shape(i)
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
                          self.anc[i] < 0, box)
 

@@ -100,12 +100,11 @@ def _com_z(model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray) -> fl
 
 
 def _scan(model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray, root: int,
-          up_local: np.ndarray, cos_tilt: float | None, com_limit: float
+          bodies: np.ndarray, up_local: np.ndarray, cos_tilt: float | None, com_limit: float
           ) -> tuple[int | None, bool]:
     """Every 10 ms sample of a rollout: the state index of the first fall (root up axis tilted
-    below ``cos_tilt``; None: never, or not checked) and whether the centre of mass rose above
-    ``com_limit`` before it (module docstring)."""
-    bodies = np.flatnonzero(model.body_rootid == model.body_rootid[root])
+    below ``cos_tilt``; None: never, or not checked) and whether the centre of mass of the
+    robot's ``bodies`` rose above ``com_limit`` before it (module docstring)."""
     every = max(1, round(FALL_SAMPLE_DT / model.opt.timestep))
     for k in range(every - 1, len(states), every):
         data.qpos[:] = states[k, 1:1 + model.nq]
@@ -147,8 +146,8 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     data.qpos[:] = rest_pose(model)
     mujoco.mj_forward(model, data)
     up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
-    com_limit = _com_z(model, data, np.flatnonzero(model.body_rootid == model.body_rootid[root])) \
-        + MAX_RISE * st.extent
+    bodies = np.flatnonzero(model.body_rootid == model.body_rootid[root])
+    com_limit = _com_z(model, data, bodies) + MAX_RISE * st.extent
     cos_tilt = math.cos(math.radians(max_tilt)) if max_tilt is not None else None
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
@@ -167,9 +166,9 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
         if _root_pos(model, data, s[-1, 1:1 + model.nq], root)[2] < st.floor_z - st.extent:
             bad += 1  # fell through the floor (no collision geoms)
             continue
-        fell, flew = _scan(model, data, s, root, up_local, cos_tilt, com_limit)
+        fell, flew = _scan(model, data, s, root, bodies, up_local, cos_tilt, com_limit)
         if flew:
-            bad += 1  # lifted by numerical energy, not walking
+            bad += 1  # a leap or numerical energy: not walking
             continue
         last = len(s) - 1 if fell is None else fell
         if last <= first:  # fell before the distance counts
