@@ -171,7 +171,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--overwrite", action="store_true",
                    help="--out holds robots of another checkpoint/seed: delete them first")
     g.add_argument("--mirror-limbs", action=argparse.BooleanOptionalAction, default=True,
-                   help="near-mirror limb pairs on the trunk become exact mirror images")
+                   help="near-mirror limb pairs on the trunk become exact mirror images, and a "
+                        "stray limb beside them gets its mirror image")
     g.add_argument("--quality", action=argparse.BooleanOptionalAction, default=True,
                    help="measure every valid robot: attached, symmetric, standing (the "
                    "standing test continues the validation's held second)")

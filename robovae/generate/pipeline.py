@@ -41,7 +41,7 @@ from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.build import build_robot
 from robovae.generate.rules import floating_base
-from robovae.generate.symmetry import mirror_limbs
+from robovae.generate.symmetry import complete_pairs, mirror_limbs
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import PRIORS, RoboVAE
@@ -213,9 +213,11 @@ def generate(
     ``temperature`` scales the robot latent ``z``; ``node_temperature`` (default:
     ``temperature``) the node latents' noise (the detail of each node). ``mirror``: near-mirror
     limb pairs become exact mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`,
-    reported as ``mirror_limbs``). ``quality``: measure every valid robot (attached, symmetric,
-    standing; :func:`~robovae.evaluate.quality.measure.robot_quality`). ``controls``: the
-    validation's simulation, ``"held"`` (the first second of the standing test) or ``"zero"``
+    reported as ``mirror_limbs``) and a stray limb beside them gets its mirror image
+    (:func:`~robovae.generate.symmetry.complete_pairs`, reported as ``complete_pairs``).
+    ``quality``: measure every valid robot (attached, symmetric, standing;
+    :func:`~robovae.evaluate.quality.measure.robot_quality`). ``controls``: the validation's
+    simulation, ``"held"`` (the first second of the standing test) or ``"zero"``
     (:mod:`robovae.generate.validate`). ``redraws``: a robot whose decoding did not finish its
     tree (it reached the decoder's node or depth limit) redraws its ``z`` up to this many times
     (:func:`~robovae.model.prior.draw_robots`; rule ``redraw_unfinished``, ``draw`` in the
@@ -313,6 +315,8 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
         if mirror:
             g, changed = mirror_limbs(g, fs)
             fixes += ["mirror_limbs"] if changed else []
+            g, changed = complete_pairs(g, fs)
+            fixes += ["complete_pairs"] if changed else []
         rec = robot_record(g, model.normalizer)
         rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
                    latent=[round(float(v), 6) for v in zi], draw=int(k), rules=fixes,
@@ -345,10 +349,11 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     Writing and validation run in ``pool`` (or ``jobs`` worker processes, 0: all cores; 1: in
     this process). With ``floating``, a robot whose root is a single joint gets a floating
     base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
-    ``mirror``, near-mirror limb pairs are mirrored (:func:`~robovae.generate.symmetry.
-    mirror_limbs`, listed as ``mirror_limbs``); with ``quality`` (and ``validate``), every
-    valid robot's quality measures go into its record under ``quality``; ``controls``: the
-    validation's simulation (:mod:`robovae.generate.validate`).
+    ``mirror``, near-mirror limb pairs are mirrored and stray limbs paired
+    (:func:`~robovae.generate.symmetry.mirror_limbs`, :func:`~robovae.generate.symmetry.
+    complete_pairs`, listed as ``mirror_limbs``, ``complete_pairs``); with ``quality`` (and
+    ``validate``), every valid robot's quality measures go into its record under ``quality``;
+    ``controls``: the validation's simulation (:mod:`robovae.generate.validate`).
     """
     records, items = prepare_records(model, indices, z, graphs, out, seed=seed,
                                      temperature=temperature, validate=validate, scene=scene,

@@ -28,6 +28,14 @@ orientations ``(w, v) → (w, -M v)`` (``link.quat``, ``link.iquat``), hinge/sli
 ``a → -M a`` (so that a joint range keeps its sign), everything else (masses, inertias, sizes,
 ranges, dynamics) unchanged. Subtree masses above the limb are then made consistent by the
 writer's rule ``subtreemass_consistent``.
+
+**Completing pairs** (:func:`complete_pairs`, reported as ``complete_pairs``): in a robot with
+at least one near-mirror pair, a limb off the sagittal plane that is in no pair, has the
+topology of a paired limb and lies as far off the plane as those pairs (``|p_y| ≥``
+:data:`STRAY_TOL` ``· min |p_y|``; a third leg on one side) gets its mirror image as a new
+limb, attached at ``M p`` right after it. The
+training robots pair their limbs off the plane (0 of 1,000 procedural robots changed); no zoo or
+Menagerie robot is changed.
 """
 
 from __future__ import annotations
@@ -41,12 +49,19 @@ from robovae.data.graph import RobotData, tree_data
 from robovae.generate.bodies import subtree, trunk
 from robovae.generate.graph_view import GraphView, as_feature_set, node_mask
 
-__all__ = ["ATTACH_TOL", "MIRROR_TOL", "is_symmetric", "limbs", "mirror_limbs", "mirrored_pairs"]
+__all__ = ["ATTACH_TOL", "MIRROR_TOL", "STRAY_TOL", "complete_pairs", "is_symmetric", "limbs",
+           "mirror_limbs", "mirrored_pairs"]
 
 #: Relative tolerance on lengths and masses of a mirrored pair.
 MIRROR_TOL = 0.10
 #: A limb whose attachment has ``|p_y| ≤ ATTACH_TOL |p|`` lies on the sagittal plane.
 ATTACH_TOL = 0.25
+#: A stray limb (:func:`complete_pairs`) lies as far off the sagittal plane as the pairs of its
+#: topology: ``|p_y| ≥ STRAY_TOL · min |p_y|`` over them. Radial robots of the training corpus
+#: with an odd leg count, rotated so that one leg sits 15–26° off the plane, keep their legs
+#: (that leg is nearer the plane than the pairs'; by ``ATTACH_TOL`` alone 3 of 400 would have
+#: been given a sixth or fourth leg).
+STRAY_TOL = 0.9
 #: Largest ratio of total lengths times total masses of a near-mirror pair.
 SIZE_RATIO = 2.0
 #: Largest difference in link count (fraction of the larger limb, at least 1) of a near-mirror
@@ -154,6 +169,14 @@ def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
     return pairs
 
 
+def _plan(data: RobotData, feature_set: str | FeatureSet
+          ) -> tuple[GraphView, list[int], list[tuple[int, int]]]:
+    """The graph's view, its trunk's limbs and their near-mirror pairs."""
+    v = GraphView(data, as_feature_set(feature_set))
+    _, roots = limbs(v)
+    return v, roots, _planned_pairs(v, roots)
+
+
 def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
     out = row.copy()
     m = _M
@@ -184,13 +207,56 @@ def mirror_limbs(data: RobotData, feature_set: str | FeatureSet = "paper34"
         ``(data, changed)``: the new graph (``data`` itself when no pair was found) and whether
         a feature or the tree changed.
     """
-    fs = as_feature_set(feature_set)
-    v = GraphView(data, fs)
-    _, roots = limbs(v)
-    plan = _planned_pairs(v, roots)
+    v, _, plan = _plan(data, feature_set)
     if not plan:
         return data, False
-    replace = {b: a for a, b in plan}
+    return _rebuild(data, v, {b: a for a, b in plan}, set())
+
+
+def complete_pairs(data: RobotData, feature_set: str | FeatureSet = "paper34"
+                   ) -> tuple[RobotData, bool]:
+    """Give every stray limb its mirror image (module docstring): in a robot whose trunk has
+    at least one near-mirror pair, a limb off the sagittal plane, in no pair, with the
+    topology of a paired limb and as far off the plane as those pairs, gets its mirror image
+    as a new limb, attached at ``M p`` right after it (a generation choice reported as
+    ``complete_pairs``; run after :func:`mirror_limbs`). The training robots pair their limbs
+    off the plane; a decoded robot with a pair and a third leg on one side is a decoding
+    error, and mirroring the stray limb is the repair that keeps what was decoded (removing it
+    instead: the same symmetry, 2 points less standing, docs/generation.md).
+
+    Returns:
+        ``(data, changed)``: the new graph (``data`` itself when nothing was added) and whether
+        a limb was added.
+    """
+    v, roots, plan = _plan(data, feature_set)
+    if not plan:
+        return data, False
+
+    def side(r: int) -> float:  # |p_y| of the limb's attachment
+        return abs(float(v.get(_first_link(v, r), "link.pos")[1]))
+
+    reach: dict[tuple, float] = {}  # per paired topology, the smallest |p_y| of its pairs
+    for r in (r for pair in plan for r in pair):
+        reach[_shape(v, r)] = min(reach.get(_shape(v, r), np.inf), side(r))
+    paired = {r for pair in plan for r in pair}
+    stray = set()
+    for r in roots:
+        f = _first_link(v, r)
+        if r in paired or f < 0 or _shape(v, r) not in reach:
+            continue
+        p = np.asarray(v.get(f, "link.pos"), dtype=float)
+        off = abs(p[1]) > ATTACH_TOL * max(float(np.linalg.norm(p)), 1e-9)
+        if off and abs(p[1]) >= STRAY_TOL * reach[_shape(v, r)]:
+            stray.add(r)
+    if not stray:
+        return data, False
+    return _rebuild(data, v, {}, stray)
+
+
+def _rebuild(data: RobotData, v: GraphView, replace: dict[int, int], twin: set[int]
+             ) -> tuple[RobotData, bool]:
+    """The graph with the trunk's child ``b`` replaced by the mirror image of ``replace[b]``,
+    and each child in ``twin`` followed by its own mirror image; ``(graph, changed)``."""
     parent: list[int] = []
     types: list[int] = []
     rows: list[np.ndarray] = []
@@ -205,13 +271,15 @@ def mirror_limbs(data: RobotData, feature_set: str | FeatureSet = "paper34"
                 emit(replace[c], me, True)
             else:
                 emit(c, me, mirrored)
+            if not mirrored and c in twin:
+                emit(c, me, True)
 
     emit(0, -1, False)
     x = torch.from_numpy(np.stack(rows)).to(torch.float32)
-    x = torch.where(torch.from_numpy(node_mask(fs, types)), x,
+    x = torch.where(torch.from_numpy(node_mask(v.fs, types)), x,
                     torch.zeros((), dtype=torch.float32))
     changed = parent != v.parent or types != v.types or not torch.equal(x, data.x)
     if not changed:
         return data, False
-    return tree_data(parent, types, x, fs, name=getattr(data, "name", ""),
+    return tree_data(parent, types, x, v.fs, name=getattr(data, "name", ""),
                      source=getattr(data, "source", "")), True

@@ -15,7 +15,13 @@ from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.generate.graph_view import GraphView
-from robovae.generate.symmetry import is_symmetric, limbs, mirror_limbs, mirrored_pairs
+from robovae.generate.symmetry import (
+    complete_pairs,
+    is_symmetric,
+    limbs,
+    mirror_limbs,
+    mirrored_pairs,
+)
 from robovae.generate.writer import graph_to_spec
 
 FS = get_feature_set("paper34")
@@ -123,3 +129,59 @@ def test_a_decoded_pair_off_its_mirror_place_is_mirrored():
     assert not is_symmetric(bent)
     out, changed = mirror_limbs(bent)
     assert changed and is_symmetric(out) and out.num_nodes == g.num_nodes
+
+
+def _without(g, nodes: set[int]):
+    """``g`` with the subtrees rooted at ``nodes`` cut off."""
+    from robovae.data.graph import tree_data
+
+    v = GraphView(g, FS)
+    cut = set()
+    for n in nodes:
+        cut |= set(_subtree_nodes(v, n))
+    keep = [i for i in range(g.num_nodes) if i not in cut]
+    index = {old: new for new, old in enumerate(keep)}
+    parent = [index[p] if p >= 0 else -1 for p in g.parent[keep].tolist()]
+    return tree_data(parent, g.node_type[keep], g.x[keep], FS)
+
+
+def _subtree_nodes(v: GraphView, root: int) -> list[int]:
+    out, stack = [], [root]
+    while stack:
+        n = stack.pop()
+        out.append(n)
+        stack.extend(v.kids[n])
+    return out
+
+
+def test_a_stray_leg_gets_its_mirror_image():
+    """A hexapod that lost its last (right) leg: two pairs and a stray left leg; the stray
+    leg's mirror image is added where the lost leg was."""
+    g = mirror_limbs(_hexapod())[0]
+    v = GraphView(g, FS)
+    lost = limbs(v)[1][5]
+    five = _without(g, {lost})
+    assert mirrored_pairs(five) == (2, 5) and is_symmetric(five)  # one unpaired limb is allowed
+    out, changed = complete_pairs(five)
+    assert changed and mirrored_pairs(out) == (3, 6) and out.num_nodes == g.num_nodes
+    vo = GraphView(out, FS)
+    new = limbs(vo)[1][5]
+    assert np.allclose(vo.get(new, "link.pos"), v.get(lost, "link.pos"), atol=1e-6)
+    assert torch.equal(out.x, g.x)  # the whole hexapod back, to the last feature
+
+
+def test_complete_pairs_leaves_other_limbs_alone():
+    # real robots: nothing to complete
+    for name in ("gym_ant", "gym_humanoid", "dmc_quadruped", "gym_half_cheetah"):
+        g = model_to_graph(load_robot(ZOO[name]).model, "paper34")
+        assert complete_pairs(g)[0] is g, name
+    g = mirror_limbs(_hexapod())[0]
+    v = GraphView(g, FS)
+    roots = limbs(v)[1]
+    # a stray limb of another topology than the pairs' (a torso, an arm) stays single
+    other = _without(g, {roots[5], _subtree_links(v, roots[4])[-1]})
+    assert mirrored_pairs(other) == (2, 5)
+    assert complete_pairs(other) == (other, False)
+    # a robot without a pair (one leg off the plane) is not given a second one
+    lone = _without(g, set(roots[1:]))
+    assert complete_pairs(lone) == (lone, False)
