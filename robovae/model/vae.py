@@ -482,16 +482,8 @@ class RoboVAE(L.LightningModule):
     @torch.no_grad()
     def sample(self, n: int, temperature: float = 1.0,
                generator: torch.Generator | None = None) -> list[RobotData]:
-        """Decode ``n`` latents drawn from the sampling prior (:meth:`prior_latent`, at
-        ``temperature``), every node's latent from its conditional prior at the same
-        temperature."""
-        hp = self.hparams
-        z = torch.randn(n, hp.latent_dim, generator=generator) * temperature
-        mix = self.sampling_mixture()
-        if mix is not None:
-            k = torch.multinomial(mix.weights.float().cpu(), n, replacement=True,
-                                  generator=generator)
-            z = mix.means[k].float().cpu() + z * mix.stds[k].float().cpu()
-        noise = torch.randn(n, hp.max_nodes, hp.node_latent_dim,
-                            generator=generator) * temperature
+        """Decode ``n`` robots of the sampling prior at ``temperature``: those of a generation
+        run (:meth:`sample_prior`) whose seed is drawn from ``generator``."""
+        seed = int(torch.randint(0, 2**31 - 1, (1,), generator=generator))
+        z, noise = self.sample_prior(seed, range(n), temperature)
         return self.decode(z, node_noise=noise)
