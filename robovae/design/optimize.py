@@ -1,14 +1,22 @@
-"""``robovae optimize``: CMA-ES over the latent space for a task, against two baselines.
+r"""``robovae optimize``: CMA-ES over the latent space for a task, against two baselines.
 
 For a checkpoint with latent dimension ``d``, task ``T`` (:data:`robovae.design.score.TASKS`)
 and a budget of ``N`` evaluations per method, three methods run side by side in one run:
 
-- ``cma``: CMA-ES (the ``cmaes`` package) over ``z in R^d``, started with the moments of the
-  sampling prior: mean ``m_0`` and covariance ``C_0`` of the fitted latent mixture
-  (:meth:`~robovae.model.latent_mixture.LatentMixture.moments`), or ``0`` and ``I`` for
-  ``N(0, I)``, step size ``sigma_0 = 1``, so that its first generation is spread like the prior
-  samples it competes with; default population ``4 + floor(3 ln d)``, seeded with ``seed``; it
-  minimises ``-score``;
+- ``cma``: CMA-ES (the ``cmaes`` package) in the sampling prior's principal subspace. With
+  the prior's mean ``m_0`` and covariance ``C_0 = U diag(lambda) U^T`` (the fitted latent
+  mixture's :meth:`~robovae.model.latent_mixture.LatentMixture.moments`, or ``0`` and ``I`` for
+  ``N(0, I)``; eigenvalues in decreasing order), the search keeps the ``k`` leading directions
+  that hold the share ``variance`` of the prior's variance (``sum_{i<=k} lambda_i >= variance
+  sum_i lambda_i``) and whitens them:
+
+  .. math::  z = m_0 + U_k \mathrm{diag}(\lambda_k)^{1/2} y, \qquad y \in R^k,
+
+  CMA-ES over ``y`` starts at ``0`` with covariance ``I`` and step size ``sigma_0 = 1``, so that
+  its first generation is spread like the prior samples it competes with (``variance = 1``:
+  the whole space, ``k = d``); default population ``4 + floor(3 ln k)``, seeded with ``seed``;
+  it minimises ``-score``. The directions left out hold the posterior's collapsed latents,
+  where a d-dimensional CMA-ES spends most of its budget learning nothing (docs/design.md);
 - ``prior``: random samples of the model's sampling prior, what ``robovae generate`` draws
   (:meth:`robovae.model.vae.RoboVAE.prior_latent`: the fitted latent mixture, or
   ``N(0, I)``; generator seeded by ``(seed, i)``);
@@ -33,7 +41,8 @@ Output folder ``out``:
   rewritten at the end; ``convergence.png``: best score so far against evaluations.
 
 Bad input is refused with one line before anything is written: an unknown task, a budget
-``<= 0``, a checkpoint that is not one, an ``out`` that is a file or holds a log of another run.
+``<= 0``, a ``variance`` outside ``(0, 1]``, a checkpoint that is not one, an ``out`` that is
+a file or holds a log of another run.
 """
 
 from __future__ import annotations
@@ -54,7 +63,7 @@ from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
 
-__all__ = ["METHODS", "best_so_far", "optimize", "procedural_seed"]
+__all__ = ["METHODS", "best_so_far", "optimize", "principal_basis", "procedural_seed"]
 
 METHODS = ("cma", "prior", "procedural")
 LOG = "log.json"
@@ -63,6 +72,16 @@ LOG = "log.json"
 def procedural_seed(seed: int, index: int) -> int:
     """Seed of procedural baseline robot ``index`` of a run with ``seed``."""
     return int(np.random.SeedSequence([seed, index, 2]).generate_state(1)[0])
+
+
+def principal_basis(cov: np.ndarray, variance: float) -> np.ndarray:
+    """``U_k diag(lambda_k)^{1/2}`` ``[d, k]``: the fewest leading eigenvectors of ``cov``,
+    scaled by their standard deviations, that hold the share ``variance`` of its trace."""
+    lam, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    lam, vecs = np.clip(lam[::-1], 0.0, None), vecs[:, ::-1]
+    share = np.cumsum(lam) / lam.sum()
+    k = min(int(np.searchsorted(share, variance - 1e-9)) + 1, len(lam))
+    return vecs[:, :k] * np.sqrt(lam[:k])
 
 
 def best_so_far(scores: Sequence[float]) -> np.ndarray:
@@ -111,22 +130,29 @@ class _Run:
     """State of one optimisation folder: settings, log, model, CMA-ES."""
 
     def __init__(self, model: RoboVAE, task: str, budget: int, out: Path, seed: int,
-                 jobs: int, top: int) -> None:
+                 jobs: int, top: int, variance: float) -> None:
         from cmaes import CMA
 
         self.model, self.task, self.budget, self.out = model, task, budget, out
         self.seed, self.jobs, self.top = seed, jobs, top
         self.dim = int(model.hparams.latent_dim)
         self.floating = task != "reach"
-        self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
-                         "latent_dim": self.dim, "score_seed": 0,
-                         "score_version": SCORE_VERSION, "cma_start": "prior moments"}
-        self.log = {"settings": self.settings, "budget": budget,
-                    "evaluations": {m: [] for m in METHODS}}
         mix = model.sampling_mixture()
         mean, cov = mix.moments() if mix is not None else (np.zeros(self.dim), np.eye(self.dim))
-        self.cma = CMA(mean=mean, sigma=1.0, cov=cov, seed=seed)
+        self.origin, self.basis = mean, principal_basis(cov, variance)
+        self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
+                         "latent_dim": self.dim, "score_seed": 0,
+                         "score_version": SCORE_VERSION, "cma_start": "prior moments",
+                         "cma_variance": variance, "cma_dim": self.basis.shape[1]}
+        self.log = {"settings": self.settings, "budget": budget,
+                    "evaluations": {m: [] for m in METHODS}}
+        self.cma = CMA(mean=np.zeros(self.basis.shape[1]), sigma=1.0, seed=seed)
         self.pending: list[dict] = []  # evaluated part of the CMA-ES generation being asked
+
+    def ask(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """One CMA-ES generation: its search points ``y`` and their latents ``z``."""
+        ys = [self.cma.ask() for _ in range(self.cma.population_size)]
+        return ys, [self.origin + self.basis @ y for y in ys]
 
     def load(self) -> None:
         """Continue from ``log.json`` (module docstring); refuses another run's log."""
@@ -143,9 +169,9 @@ class _Run:
         done = self.log["evaluations"]["cma"]
         pop = self.cma.population_size
         for g in range(0, len(done) - len(done) % pop, pop):
-            zs = [self.cma.ask() for _ in range(pop)]
+            ys, zs = self.ask()
             self._check_replay(zs, done[g:g + pop])
-            self.cma.tell([(z, -r["score"]) for z, r in zip(zs, done[g:g + pop])])
+            self.cma.tell([(y, -r["score"]) for y, r in zip(ys, done[g:g + pop])])
         self.pending = done[len(done) - len(done) % pop:]  # a generation cut by the budget
 
     def _check_replay(self, zs: Sequence[np.ndarray], recs: Sequence[dict]) -> None:
@@ -167,7 +193,7 @@ class _Run:
         jobs: list[tuple[str, int, object]] = []
         start = len(ev["cma"]) - len(self.pending)  # index of this generation's first
         if left["cma"] > 0:
-            zs = [self.cma.ask() for _ in range(pop)]
+            ys, zs = self.ask()
             self._check_replay(zs, self.pending)
             jobs += [("cma", start + k, z) for k, z in enumerate(zs)
                      if k >= len(self.pending) and start + k < self.budget]
@@ -193,7 +219,7 @@ class _Run:
         if left["cma"] > 0:
             gen = ev["cma"][start:start + pop]
             if len(gen) == pop:
-                self.cma.tell([(z, -r["score"]) for z, r in zip(zs, gen)])
+                self.cma.tell([(y, -r["score"]) for y, r in zip(ys, gen)])
                 self.pending = []
             else:
                 self.pending = gen
@@ -249,7 +275,8 @@ def _plot(run: _Run, path: Path) -> Path:
 
 
 def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
-             seed: int = 0, jobs: int = 0, top: int = 3, progress: bool = True) -> dict:
+             seed: int = 0, jobs: int = 0, top: int = 3, progress: bool = True,
+             variance: float = 0.95) -> dict:
     """Run (or continue) an optimisation (module docstring).
 
     Returns:
@@ -257,7 +284,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         ``plot``.
 
     Raises:
-        RobovaeError: unknown task, ``budget <= 0``, bad checkpoint, ``out`` not usable.
+        RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``, bad
+            checkpoint, ``out`` not usable.
     """
     if task not in TASKS:
         raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
@@ -265,11 +293,13 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         raise RobovaeError(f"robovae: --budget must be > 0, got {budget}")
     if top < 1:
         raise RobovaeError(f"robovae: --top must be >= 1, got {top}")
+    if not 0.0 < variance <= 1.0:
+        raise RobovaeError(f"robovae: --variance must be in (0, 1], got {variance}")
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
     model = ckpt if isinstance(ckpt, RoboVAE) else load_model(ckpt)
-    run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top)
+    run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance)
     run.load()
     out.mkdir(parents=True, exist_ok=True)
     from tqdm.auto import tqdm

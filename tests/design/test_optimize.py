@@ -10,7 +10,7 @@ import pytest
 
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
-from robovae.design.optimize import METHODS, best_so_far, optimize
+from robovae.design.optimize import METHODS, best_so_far, optimize, principal_basis
 from robovae.design.score import reach_score, score_robot, walk_score
 from robovae.envs.walk import walk_scene
 from robovae.evaluate.quality.locomotion import gait
@@ -80,10 +80,22 @@ def test_best_so_far():
     assert best_so_far([1, 0, 3, 2]).tolist() == [1, 1, 3, 3]
 
 
+def test_principal_basis_keeps_the_leading_variance():
+    rng = np.random.default_rng(0)
+    q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    cov = q @ np.diag([4.0, 3.0, 2.0, 0.5, 0.3, 0.2]) @ q.T  # trace 10
+    assert np.allclose(principal_basis(cov, 1.0) @ principal_basis(cov, 1.0).T, cov)
+    b = principal_basis(cov, 0.9)  # 4 + 3 + 2 = 90 % of the trace
+    assert b.shape == (6, 3)
+    assert np.allclose(b.T @ b, np.diag([4.0, 3.0, 2.0]))  # whitened: y ~ N(0, I) -> C_k
+    assert principal_basis(cov, 0.91).shape == (6, 4)
+    assert principal_basis(cov, 0.3).shape == (6, 1)
+
+
 def test_optimize_writes_log_plot_best_and_resumes(trained_nodes, tmp_path):
     model, _, ckpt = trained_nodes
     out = tmp_path / "opt"
-    res = optimize(ckpt, "stand", 3, out, seed=1, jobs=1, top=2, progress=False)
+    res = optimize(ckpt, "stand", 3, out, seed=1, jobs=1, top=2, progress=False, variance=0.5)
     log = json.loads((out / "log.json").read_text())
     for m in METHODS:
         recs = log["evaluations"][m]
@@ -92,17 +104,24 @@ def test_optimize_writes_log_plot_best_and_resumes(trained_nodes, tmp_path):
         assert (out / "best" / m / "rank_0" / "robot.xml").is_file()
         assert (out / "best" / m / "rank_1" / "robot.xml").is_file()
     assert all(len(r["z"]) == model.hparams.latent_dim for r in log["evaluations"]["cma"])
+    # CMA-ES searches the prior's leading directions: its latents lie in that affine subspace
+    mean, cov = model.sampling_mixture().moments() if model.sampling_mixture() is not None \
+        else (np.zeros(model.hparams.latent_dim), np.eye(model.hparams.latent_dim))
+    basis = principal_basis(cov, 0.5)
+    assert log["settings"]["cma_dim"] == basis.shape[1] < model.hparams.latent_dim
+    z = np.array([r["z"] for r in log["evaluations"]["cma"]]) - mean
+    assert np.allclose(z, z @ basis @ np.linalg.pinv(basis), atol=1e-8)
     assert (out / "convergence.png").stat().st_size > 1000
     assert not (out / ".work").exists()
     # a larger budget continues: the logged evaluations are kept, CMA-ES is replayed
-    optimize(ckpt, "stand", 5, out, seed=1, jobs=1, top=2, progress=False)
+    optimize(ckpt, "stand", 5, out, seed=1, jobs=1, top=2, progress=False, variance=0.5)
     log2 = json.loads((out / "log.json").read_text())
     for m in METHODS:
         assert log2["evaluations"][m][:3] == log["evaluations"][m]
         assert len(log2["evaluations"][m]) == 5
     # the same run from scratch reaches the same log
     fresh = tmp_path / "fresh"
-    optimize(ckpt, "stand", 5, fresh, seed=1, jobs=1, top=2, progress=False)
+    optimize(ckpt, "stand", 5, fresh, seed=1, jobs=1, top=2, progress=False, variance=0.5)
     assert json.loads((fresh / "log.json").read_text()) == log2
 
 
@@ -124,6 +143,7 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys):
     (["--task", "fly", "--budget", "2"], "unknown task 'fly'"),
     (["--task", "walk", "--budget", "0"], "--budget must be > 0"),
     (["--task", "walk", "--budget", "-3"], "--budget must be > 0"),
+    (["--task", "walk", "--budget", "2", "--variance", "0"], "--variance must be in (0, 1]"),
 ])
 def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, message):
     _, _, ckpt = trained_nodes

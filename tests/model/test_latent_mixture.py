@@ -134,17 +134,22 @@ def test_generate_records_the_prior_it_used(mixture_model, tmp_path):
 
 
 def test_optimize_starts_cma_with_the_prior_moments(mixture_model, tmp_path):
-    """CMA-ES over z starts where the sampling prior puts robots: the mixture's mean and
-    covariance (N(0, I) without a mixture)."""
+    """CMA-ES searches where the sampling prior puts robots: ``z = m + B y`` with the mixture's
+    mean ``m`` and ``B B^T`` its covariance (the whole space at ``variance=1``), from ``y = 0``
+    (N(0, I) without a mixture)."""
     from robovae.design.optimize import _Run
 
     model, _, _ = mixture_model
     mean, cov = model.sampling_mixture().moments()
-    run = _Run(model, "walk", 4, tmp_path, seed=0, jobs=1, top=1)
-    assert np.allclose(run.cma.mean, mean)
-    assert run.settings["cma_start"] == "prior moments"
+    run = _Run(model, "walk", 4, tmp_path, seed=0, jobs=1, top=1, variance=1.0)
+    assert np.allclose(run.origin, mean) and np.allclose(run.basis @ run.basis.T, cov)
+    assert np.allclose(run.cma.mean, 0) and run.settings["cma_start"] == "prior moments"
+    ys, zs = run.ask()
+    assert np.allclose(zs[1], mean + run.basis @ ys[1])
     model.hparams.prior = "standard"
     try:
-        assert np.allclose(_Run(model, "walk", 4, tmp_path, seed=0, jobs=1, top=1).cma.mean, 0)
+        run = _Run(model, "walk", 4, tmp_path, seed=0, jobs=1, top=1, variance=1.0)
+        assert np.allclose(run.origin, 0)
+        assert np.allclose(run.basis @ run.basis.T, np.eye(len(mean)))
     finally:
         model.hparams.prior = "mixture"
