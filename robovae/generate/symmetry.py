@@ -33,9 +33,8 @@ writer's rule ``subtreemass_consistent``.
 at least one near-mirror pair, a limb off the sagittal plane that is in no pair, has the
 topology of a paired limb and lies as far off the plane as those pairs (``|p_y| ≥``
 :data:`STRAY_TOL` ``· min |p_y|``; a third leg on one side) gets its mirror image as a new
-limb, attached at ``M p`` right after it. The
-training robots pair their limbs off the plane (0 of 1,000 procedural robots changed); no zoo or
-Menagerie robot is changed.
+limb, attached at ``M p`` right after it. The training robots pair their limbs off the plane
+(0 of 1,000 procedural robots changed); no zoo or Menagerie robot is changed.
 """
 
 from __future__ import annotations
