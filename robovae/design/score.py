@@ -47,7 +47,8 @@ from robovae.evaluate.quality.locomotion import gait
 __all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_score"]
 
 #: Changes whenever a measure changes: an optimisation log of another version is not continued.
-#: 3: the walk score is the quality measure's gait search (issue 22).
+#: 3: the walk score is the quality measure's gait search (issue 22); 4: rollouts that fly
+#: (centre of mass above half the extent over rest, ``locomotion.MAX_RISE``) score 0.
 SCORE_VERSION = 4
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)

@@ -126,6 +126,11 @@ def is_symmetric(data: RobotData, feature_set: str | FeatureSet = "paper34") -> 
     return pairs >= 1 and n - 2 * pairs <= 1
 
 
+def _off_plane(p: np.ndarray) -> bool:
+    """An attachment ``p`` off the sagittal plane: ``|p_y| > ATTACH_TOL |p|``."""
+    return bool(abs(p[1]) > ATTACH_TOL * max(float(np.linalg.norm(p)), 1e-9))
+
+
 def _first_link(v: GraphView, i: int) -> int:
     return next((n for n in subtree(v.kids, i) if v.types[n] == LINK), -1)
 
@@ -142,7 +147,7 @@ def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
         if f >= 0:
             p = np.asarray(v.get(f, "link.pos"), dtype=float)
             lengths, masses = _profile(v, r)
-            off = abs(p[1]) > ATTACH_TOL * max(float(np.linalg.norm(p)), 1e-9)
+            off = _off_plane(p)
             info[r] = (p, len(lengths), float(lengths.sum()) + 1e-9,
                        float(masses.sum()) + 1e-9, off)
     cands = []
@@ -244,8 +249,7 @@ def complete_pairs(data: RobotData, feature_set: str | FeatureSet = "paper34"
         if r in paired or f < 0 or _shape(v, r) not in reach:
             continue
         p = np.asarray(v.get(f, "link.pos"), dtype=float)
-        off = abs(p[1]) > ATTACH_TOL * max(float(np.linalg.norm(p)), 1e-9)
-        if off and abs(p[1]) >= STRAY_TOL * reach[_shape(v, r)]:
+        if _off_plane(p) and abs(p[1]) >= STRAY_TOL * reach[_shape(v, r)]:
             stray.add(r)
     if not stray:
         return data, False
