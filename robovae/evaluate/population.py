@@ -200,10 +200,20 @@ def coverage(train: np.ndarray, samples: np.ndarray, threshold: float | None = N
             "mean_nearest_sample": float(nearest_sample.mean())}
 
 
+#: Most training robots :func:`compare` puts into MMD² and coverage: their pairwise matrices
+#: grow with the square (40,000 robots: 13 GB per matrix of float64).
+MAX_REFERENCE = 10_000
+
+
 def compare(train: Sequence[dict], samples: Sequence[dict], permutations: int = 200,
-            threshold: float | None = None, seed: int = 0) -> dict:
+            threshold: float | None = None, seed: int = 0,
+            max_reference: int = MAX_REFERENCE) -> dict:
     """KL per descriptor, MMD² and coverage of ``samples`` against ``train`` descriptor
     records (module docstring). Returns ``{"kl": {name: nats}, "kl_total", "mmd", "coverage"}``.
+
+    The KLs use every training record; MMD² and coverage use at most ``max_reference`` of
+    them, drawn without replacement with ``seed`` (an unbiased MMD² estimate of the same
+    distribution; ``out["reference"]`` says how many).
     """
     kl = {}
     for n in DESCRIPTORS:
@@ -214,6 +224,10 @@ def compare(train: Sequence[dict], samples: Sequence[dict], permutations: int = 
     if train and samples:
         t, s = standardize(descriptor_table(train, names), descriptor_table(samples, names),
                            names=names)
+        if len(t) > max_reference:
+            t = t[np.sort(np.random.default_rng(seed).choice(len(t), max_reference,
+                                                             replace=False))]
+        out["reference"] = len(t)
         out["mmd"] = mmd_rbf(t, s, permutations=permutations, seed=seed)
         out["coverage"] = coverage(t, s, threshold)
     else:

@@ -134,6 +134,20 @@ def test_compare_populations(quadrupeds: list[dict], humanoids: list[dict]) -> N
     assert math.isnan(empty["mmd"]["mmd2"]) and math.isnan(empty["coverage"]["coverage"])
 
 
+def test_compare_caps_the_reference_for_mmd_and_coverage(quadrupeds: list[dict],
+                                                         humanoids: list[dict]) -> None:
+    """A training set larger than ``max_reference`` enters MMD² and coverage as a seeded
+    subsample (pairwise matrices are quadratic), the KLs whole."""
+    train = quadrupeds + humanoids
+    full = compare(train, humanoids, permutations=0)
+    capped = compare(train, humanoids, permutations=0, max_reference=len(quadrupeds))
+    assert full["reference"] == len(train) and capped["reference"] == len(quadrupeds)
+    assert capped["kl"] == full["kl"]
+    assert capped["mmd"]["mmd2"] != full["mmd"]["mmd2"]
+    again = compare(train, humanoids, permutations=0, max_reference=len(quadrupeds))
+    assert again["mmd"] == capped["mmd"] and again["coverage"] == capped["coverage"]
+
+
 # ----------------------------------------------------------------------------------------------
 # entropy and dimensionality
 
