@@ -209,11 +209,12 @@ def compare(train: Sequence[dict], samples: Sequence[dict], permutations: int = 
             threshold: float | None = None, seed: int = 0,
             max_reference: int = MAX_REFERENCE) -> dict:
     """KL per descriptor, MMD² and coverage of ``samples`` against ``train`` descriptor
-    records (module docstring). Returns ``{"kl": {name: nats}, "kl_total", "mmd", "coverage"}``.
+    records (module docstring). Returns ``{"kl": {name: nats}, "kl_total", "mmd", "coverage",
+    "vector"}``, and ``"reference"`` when both sides have records.
 
     The KLs use every training record; MMD² and coverage use at most ``max_reference`` of
     them, drawn without replacement with ``seed`` (an unbiased MMD² estimate of the same
-    distribution; ``out["reference"]`` says how many).
+    distribution; ``"reference"`` says how many).
     """
     kl = {}
     for n in DESCRIPTORS:
