@@ -108,9 +108,12 @@ def view_joint_types(v: GraphView) -> list[str]:
     """:func:`joint_types` of a :class:`~robovae.generate.graph_view.GraphView`."""
     out = [""] * len(v.types)
     if v.has("joint.type"):
-        for i in v.nodes(JOINT):
-            onehot = np.nan_to_num(v.get(i, "joint.type"), nan=-np.inf)
-            out[i] = JOINT_TYPES[int(np.argmax(onehot))]
+        joints = v.nodes(JOINT)
+        if joints:  # one arg-max over every joint's one-hot
+            onehot = v.x[joints, v.fs.slice("joint.type")]
+            best = np.argmax(np.nan_to_num(onehot, nan=-np.inf), axis=1)
+            for i, k in zip(joints, best.tolist()):
+                out[i] = JOINT_TYPES[k]
         return out
     for i in v.nodes(JOINT):
         out[i] = "hinge"

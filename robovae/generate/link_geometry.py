@@ -58,6 +58,7 @@ COVER_TOL = 0.25
 MIN_BRIDGE = 0.05
 #: Smallest radius of a capsule that fills a collision box (m): a flat box has no thickness.
 MIN_RADIUS = 1e-3
+_AXES = np.eye(3)
 
 
 @dataclass
@@ -104,9 +105,18 @@ def thickness(size: np.ndarray,
               box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> float:
     """The radius a link's bridges take from its ``link.size``, or from its collision box when
     it has one (module docstring)."""
-    if box is not None and float(np.max(box[2])) > 0:
-        prim = _box_primitive(*box)
-        return float(prim.size[0]) if prim.type != "box" else float(np.min(prim.size))
+    return _thickness(size, _box_fill(box))
+
+
+def _box_fill(box: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> GeomPlan | None:
+    """The primitive that fills a collision box, None without a box (or an empty one)."""
+    return _box_primitive(*box) if box is not None and float(np.max(box[2])) > 0 else None
+
+
+def _thickness(size: np.ndarray, fill: GeomPlan | None) -> float:
+    """:func:`thickness` from ``link.size`` and the box's primitive (:func:`_box_fill`)."""
+    if fill is not None:
+        return float(fill.size[0]) if fill.type != "box" else float(np.min(fill.size))
     k = _n_size(size)
     if k == 0:
         return DEFAULT_GEOM_RADIUS
@@ -126,13 +136,14 @@ def _unit(v: np.ndarray) -> np.ndarray | None:
 
 def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> GeomPlan:
     """The primitive that fills a collision box (module docstring)."""
-    order = np.argsort(-half, kind="stable")
-    a, b, e = (float(half[k]) for k in order)
-    q = quat / (np.linalg.norm(quat) or 1.0)
+    h = half.tolist()
+    order = sorted(range(3), key=lambda k: -h[k])  # stable: ties keep the axis order
+    a, b, e = (h[k] for k in order)
+    q = quat / (norm(quat) or 1.0)
     if a >= 1.5 * b:
         r = max(0.5 * (b + e), MIN_RADIUS)
         axis = np.zeros(3)
-        mujoco.mju_rotVecQuat(axis, np.eye(3)[order[0]], q)
+        mujoco.mju_rotVecQuat(axis, _AXES[order[0]], q)
         return GeomPlan("capsule", np.array([r, max(a - r, 1e-4), 0.0]), center.copy(),
                         _quat_z_to(axis))
     if a <= 1.2 * e:
@@ -141,9 +152,10 @@ def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> Ge
     return GeomPlan("box", np.maximum(half, 1e-4), center.copy(), q)
 
 
-def _primitive(f: LinkFrame) -> GeomPlan:
-    if f.box is not None and float(np.max(f.box[2])) > 0:
-        prim = _box_primitive(*f.box)
+def _primitive(f: LinkFrame, fill: GeomPlan | None) -> GeomPlan:
+    """The link's first geom; ``fill``: :func:`_box_fill` of its box."""
+    if fill is not None:
+        prim = fill
         if prim.type == "capsule" and not f.root and f.children:  # a limb segment: joined
             u = f.children[0][0] - f.anchor
             length = float(np.linalg.norm(u))
@@ -209,8 +221,9 @@ def _bridge(a: np.ndarray, b: np.ndarray, radius: float) -> GeomPlan:
 
 def link_geoms(f: LinkFrame) -> list[GeomPlan]:
     """The primitive of a link, then its bridges (module docstring)."""
-    prim = _primitive(f)
-    r = thickness(f.size, f.box)
+    fill = _box_fill(f.box)
+    prim = _primitive(f, fill)
+    r = _thickness(f.size, fill)
     out = [prim]
     core = np.zeros(3) if f.root else f.anchor
     rot_t = _frame(prim)

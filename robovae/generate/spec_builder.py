@@ -64,6 +64,7 @@ from robovae.generate.mjcf_numbers import (
     mjcf_round,
     mjcf_round_groups,
     mjcf_round_vector,
+    mjcf_round_vectors,
     rounded_inertia,
 )
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS
@@ -89,6 +90,7 @@ _SPHERE = mujoco.mjtGeom.mjGEOM_SPHERE
 _PRIMITIVE = {"sphere": _SPHERE, "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
               "box": mujoco.mjtGeom.mjGEOM_BOX}
 _GEOM_SIZES = tuple(GEOM_SIZE_COMPONENTS[t] for t in GEOM_TYPES)
+_GEOM_GROUPS = np.array([0, 3, 6])  # size, pos, quat of a geom plan
 _LINK_RGBA = [0.55, 0.6, 0.7, 1.0]
 _GEOM_RGBA = [0.8, 0.55, 0.35, 1.0]
 
@@ -256,14 +258,23 @@ class SpecBuilder:
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
                          self.anc[i] < 0, box)
 
-    def _invented_geoms(self, body: mujoco.MjsBody, i: int, kids: list[int]) -> None:
-        for k, plan in enumerate(link_geoms(self._link_frame(i, kids))):
-            if plan.bridge:
-                self.fix("geom_bridge")
-            g = body.add_geom(name=f"link{i}_geom" if k == 0 else f"link{i}_geom{k}",
-                              type=_PRIMITIVE[plan.type], size=mjcf_round_vector(plan.size),
-                              pos=mjcf_round_vector(plan.pos), quat=mjcf_round_vector(plan.quat),
-                              rgba=_LINK_RGBA)
+    def _invented_geoms(self, bodies: dict[int, mujoco.MjsBody], kids: dict[int, list[int]]
+                        ) -> None:
+        """Every link's geoms (:func:`~robovae.generate.link_geometry.link_geoms`), their
+        numbers rounded in one pass (size, pos and quat each a vector)."""
+        plans = [(i, k, plan) for i in kids
+                 for k, plan in enumerate(link_geoms(self._link_frame(i, kids[i])))]
+        if not plans:
+            return
+        if any(plan.bridge for _, _, plan in plans):
+            self.fix("geom_bridge")
+        numbers = mjcf_round_vectors(
+            np.array([np.concatenate([p.size, p.pos, p.quat]) for _, _, p in plans]),
+            _GEOM_GROUPS)
+        for (i, k, plan), v in zip(plans, numbers):
+            g = bodies[i].add_geom(name=f"link{i}_geom" if k == 0 else f"link{i}_geom{k}",
+                                   type=_PRIMITIVE[plan.type], size=v[:3], pos=v[3:6],
+                                   quat=v[6:], rgba=_LINK_RGBA)
             g.contype, g.conaffinity = 1, int(self.self_collision)
 
     def _graph_geom(self, body: mujoco.MjsBody, g: int) -> None:
@@ -337,8 +348,7 @@ class SpecBuilder:
             for i in links:
                 if self.anc[i] >= 0:
                     kids[self.anc[i]].append(i)
-            for i in links:
-                self._invented_geoms(bodies[i], i, kids[i])
+            self._invented_geoms(bodies, kids)
 
         for j, t, jname in acts:
             self._actuate(spec, j, t, jname)

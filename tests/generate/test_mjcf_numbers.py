@@ -11,6 +11,7 @@ from robovae.generate.mjcf_numbers import (
     mjcf_round_groups,
     mjcf_round_rows,
     mjcf_round_vector,
+    mjcf_round_vectors,
 )
 
 
@@ -46,6 +47,22 @@ def test_groups_round_like_rows_group_by_group():
     for lo, hi in zip(starts, [*starts[1:], a.shape[1]]):
         assert np.array_equal(got[:, lo:hi], mjcf_round_rows(a[:, lo:hi]), equal_nan=True)
     assert mjcf_round_groups(np.zeros((0, 9)), starts).shape == (0, 9)
+
+
+def test_vectors_round_exactly_like_one_vector_at_a_time():
+    """Rows of concatenated vectors in one pass: the very numbers of mjcf_round_vector (no tie
+    may round the other way), also beside a non-finite row."""
+    rng = np.random.default_rng(3)
+    a = rng.choice([-1, 1], (400, 10)) * 10.0 ** rng.uniform(-15, 8, (400, 10))
+    a[::7, 5] = 1e-13 * a[::7, 4]  # negligible within its vector (3:6), not within the row
+    a[1::9] = np.round(a[1::9], 7) + 5e-7  # decimal ties at the 6th digit
+    starts = np.array([0, 3, 6])
+    want = [sum((mjcf_round_vector(v) for v in np.split(row, starts[1:])), []) for row in a]
+    assert mjcf_round_vectors(a, starts) == want
+    a[2, 7] = np.nan
+    assert np.array_equal(mjcf_round_vectors(a[:3], starts)[2],
+                          sum((mjcf_round_vector(v) for v in np.split(a[2], starts[1:])), []),
+                          equal_nan=True)
 
 
 def test_vector_rounding_of_lists_and_arrays_with_non_finite_values():
