@@ -11,7 +11,8 @@
 (loaded by :func:`training_graphs`, :func:`sample_files` and :func:`load_graphs`). It reports,
 for each population, descriptor statistics (:mod:`robovae.evaluate.descriptors`,
 :mod:`robovae.evaluate.population`), latent statistics of the encoded means (Gaussian and
-k-NN entropy, effective dimensionality), MuJoCo behaviour (random-actuation state entropy and
+k-NN entropy, the latter also at equal size: the larger population's on random subsets of the
+smaller one's size, effective dimensionality), MuJoCo behaviour (random-actuation state entropy and
 the standing test, :mod:`robovae.evaluate.behaviour`) on up to ``behaviour`` robots, and
 between the populations the KL per descriptor, MMD² and coverage.
 
@@ -217,9 +218,7 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     train_files: list[str | None] = [None] * len(train)
     for i in with_source:
         train_files[i] = source_file(sources[i], root)
-    result["training"] = {"what": what, **_population(
-        model, train, train_files, behaviour, jobs, entropy_kw=entropy_kw)}
-    sample_paths: list[str] = []
+    graphs: list[RobotData] = []
     if samples is not None:
         files = sample_files(samples)
         if max_samples is not None:
@@ -229,6 +228,12 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         if not graphs:
             raise RobovaeError(f"robovae: {samples}: no robot loaded "
                                f"({len(errors)} files failed)")
+    # the k-NN entropy of the larger population also on subsets of the smaller one's size
+    result["training"] = {"what": what, **_population(
+        model, train, train_files, behaviour, jobs, entropy_kw=entropy_kw,
+        match=len(graphs) if graphs and len(graphs) < len(train) else None)}
+    sample_paths: list[str] = []
+    if graphs:
         sample_paths = [g.source for g in graphs]
         pop = _population(model, graphs, sample_paths, behaviour, jobs,
                           match=len(train), entropy_kw=entropy_kw)
@@ -336,16 +341,18 @@ def format_report(result: dict) -> str:
         row = {"population": label, "robots": p["robots"],
                "H_gauss": _f(lat.get("gaussian_entropy"), "{:.2f}"),
                "H_knn": _f(lat.get("knn_entropy"), "{:.2f}"),
-               "H_knn@n_train": _f(lat.get("knn_entropy_matched", lat.get("knn_entropy")),
-                                   "{:.2f}"),
+               "H_knn@n": _f(lat.get("knn_entropy_matched", lat.get("knn_entropy")),
+                             "{:.2f}"),
                "eff_dim": _f(lat.get("effective_dim"), "{:.2f}"),
                "variance": _f(lat.get("total_variance"), "{:.3g}"),
                "median|mu|": _f(lat.get("median_norm"), "{:.2f}")}
         rows.append(row)
     prior = tr["latent"]["prior_entropy"]
+    n_eq = min(p["robots"] for _, p in pops)
     lines += ["", f"latent space (encoded means, {result['latent_dim']} dims; the prior "
-              f"N(0, I) has entropy {prior:.2f} nats)",
-              format_table(rows, ["population", "robots", "H_gauss", "H_knn", "H_knn@n_train",
+              f"N(0, I) has entropy {prior:.2f} nats; H_knn@n: k-NN entropy at n = {n_eq} "
+              "robots, the larger population's on random subsets of that size)",
+              format_table(rows, ["population", "robots", "H_gauss", "H_knn", "H_knn@n",
                                   "eff_dim", "variance", "median|mu|"])]
     rows = []
     for label, p in pops:

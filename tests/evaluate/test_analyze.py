@@ -117,7 +117,10 @@ def test_analyze_with_samples(trained, proc_samples) -> None:
     # limbs of at most 3 joints make a quadruped, longer legs count as a humanoid
     assert [r["category"] for r in sa["records"]] == [
         "quadruped" if (r["joints"] - 1) / 4 <= 3 else "humanoid" for r in sa["records"]]
-    assert "knn_entropy_matched" not in sa["latent"]  # 5 samples < training robots
+    # 5 samples < training robots: the training robots' k-NN entropy also at n = 5
+    assert "knn_entropy_matched" not in sa["latent"]
+    assert res["training"]["latent"]["matched_n"] == 5
+    assert math.isfinite(res["training"]["latent"]["knn_entropy_matched"])
     assert set(cmp_["kl"]) == set(DESCRIPTORS)
     assert cmp_["kl"]["limbs"] > 0.1  # zoo limbs 0..12 vs always 4
     assert 0.0 <= cmp_["coverage"]["coverage"] <= 1.0
@@ -125,7 +128,7 @@ def test_analyze_with_samples(trained, proc_samples) -> None:
     assert len(sa["behaviour"]) == 1 and sa["behaviour"][0]["name"] == "robot_000000"
     text = format_report(res)
     assert "samples:  5 valid robots" in text and "KL(train||samples)" in text
-    assert "MMD²" in text and "coverage" in text
+    assert "MMD²" in text and "coverage" in text and "k-NN entropy at n = 5 robots" in text
     _strict(json.dumps(to_json(res)))
     capped = analyze(ckpt, samples=proc_samples, root=ckpt.parent / "cache", behaviour=0,
                      permutations=0, max_samples=2)
