@@ -87,7 +87,10 @@ def main() -> None:
             two[key + ", feet only"] += a["feet_only"]
             two[key + ", level"] += a["level"]
         rows.append(a)
-    share = lambda xs: f"{np.mean([x['inside'] for x in xs if x]):.1%} of {sum(map(bool, xs))}"  # noqa: E731
+    def share(xs: list[dict | None]) -> str:  # floating robots only (None: fixed base)
+        done = [x["inside"] for x in xs if x]
+        return f"{np.mean(done):.1%} of {len(done)}"
+
     table = [{"robots": f"samples (first {args.n} floating)", "CoM above support": share(rows)}]
     if args.written > 0:
         written = [at_rest(p) for p in written_files(args.written, args.root, zoo=False)]

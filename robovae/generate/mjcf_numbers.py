@@ -51,12 +51,20 @@ def mjcf_round_vectors(a: np.ndarray, starts: np.ndarray) -> list[list[float]]:
     if not np.isfinite(a).all():  # NaN/Inf: the per-vector rules
         return [sum((mjcf_round_vector(g) for g in np.split(row, starts[1:])), [])
                 for row in a]
-    mag = np.abs(a)
-    width = np.diff(np.append(starts, a.shape[1]))
-    big = np.repeat(np.maximum.reduceat(mag, starts, axis=1), width, axis=1)
-    zero = ((mag <= 1e-12 * big) | (mag < 1e-16)).tolist()
+    zero = _negligible(a, starts).tolist()
     return [[0.0 if z else float(f"{v:.6g}") for v, z in zip(row, zrow)]
             for row, zrow in zip(a.tolist(), zero)]
+
+
+def _negligible(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Boolean ``a.shape``: the finite components that MJCF output writes as 0, those with
+    ``|a| <= 1e-12 · max |a|`` over their group of columns (``starts``, as in
+    :func:`mjcf_round_groups`) or ``|a| < 1e-16``."""
+    fin = np.isfinite(a)
+    mag = np.where(fin, np.abs(a), 0.0)
+    width = np.diff(np.append(starts, a.shape[1]))
+    big = np.repeat(np.maximum.reduceat(mag, starts, axis=1), width, axis=1)
+    return fin & ((mag <= 1e-12 * big) | (mag < 1e-16))
 
 
 def mjcf_round_rows(a: np.ndarray) -> np.ndarray:
@@ -88,11 +96,8 @@ def mjcf_round_groups(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
     if a.size == 0:
         return a.copy()
     fin = np.isfinite(a)
-    mag = np.where(fin, np.abs(a), 0.0)
-    width = np.diff(np.append(starts, a.shape[1]))
-    big = np.repeat(np.maximum.reduceat(mag, starts, axis=1), width, axis=1)
     out = a.copy()
-    zero = fin & ((mag <= 1e-12 * big) | (mag < 1e-16))
+    zero = _negligible(a, starts)
     out[zero] = 0.0
     live = fin & ~zero
     if live.any():
