@@ -37,7 +37,9 @@ rounded as MJCF output writes them (:mod:`robovae.generate.mjcf_numbers`).
 Structures no rule can repair (they change the topology; malformed decoded graphs only) are
 repaired here, and their names recorded (:data:`WRITER_FIXES`): ``empty_robot`` (no link node:
 one default body), ``dangling_joint`` (a joint with no link below it: dropped),
-``joint_shared`` (a joint leading to several links: each gets a copy), ``orphan_geom`` (a geom
+``joint_shared`` (a joint leading to several links: the first of them in pre-order gets it,
+the others are attached through their own joints only, so a written robot has at most as many
+joints as the graph; a free joint is copied to each top-level link), ``orphan_geom`` (a geom
 with no link above it: dropped), ``free_not_top_level`` (a free joint below the top level or
 not alone in its body, possible only without the rules: written as a hinge),
 ``dof_chain_split`` (joints of one body with more than 6 DoFs, MuJoCo's limit: the chain is
@@ -314,7 +316,11 @@ class SpecBuilder:
         for i in links:
             parent_body = bodies[self.anc[i]] if self.anc[i] >= 0 else spec.worldbody
             top_level = self.anc[i] < 0
-            groups = self._groups(self.chain[i], top_level)
+            chain = [j for j in self.chain[i]
+                     if j not in used or (top_level and self.jtypes[j] == "free")]
+            if len(chain) < len(self.chain[i]):
+                self.fix("joint_shared")  # the joint moves the first link below it only
+            groups = self._groups(chain, top_level)
             pos = self.vec(i, "link.pos")
             quat = self.vec(i, "link.quat")
             for k, group in enumerate(groups[:-1]):  # > 6 DoFs: light intermediate bodies

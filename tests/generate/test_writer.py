@@ -356,6 +356,25 @@ def test_writer_fixes_malformed_trees():
     assert "empty_robot" in fired and spec.compile().nbody == 2
 
 
+def test_shared_joints_are_not_copied_down_a_chain():
+    """A decoding cut off by the node limit can be a chain of joints with a link hanging from
+    each (J1 -> J2 -> ... -> Jk, Ji -> Li): every joint is written once, to the first link
+    below it, not copied to every link further down (k (k + 1) / 2 joints, 6,720 for one
+    256-node decoding)."""
+    fs = get_feature_set("paper34")
+    k = 12
+    parent, types = [-1], [LINK]
+    for i in range(k):
+        j = len(parent)
+        parent += [0 if i == 0 else j - 2, j]
+        types += [JOINT, LINK]
+    g = tree_data(parent, types, torch.rand(len(parent), fs.dim), fs)
+    spec, fired = graph_to_spec(g, fs)
+    assert "joint_shared" in fired
+    m = mujoco.MjModel.from_xml_string(spec.to_xml())
+    assert m.njnt == k and m.nbody - 1 == k + 1
+
+
 def test_rules_false_may_fail():
     g = quadruped("paper34")
     fs = get_feature_set("paper34")
