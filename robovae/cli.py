@@ -97,7 +97,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     from robovae.design.optimize import METHODS, optimize
 
     res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
-                   top=args.top, variance=args.variance)
+                   top=args.top, variance=args.variance, population=args.population)
     rows = [{"method": m, "evaluations": res[m]["evaluations"], "best": f"{res[m]['best']:.4f}",
              "best index": res[m]["best_index"]} for m in METHODS]
     print(format_table(rows, ["method", "evaluations", "best", "best index"]))
@@ -216,6 +216,9 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--variance", type=float, default=0.95,
                    help="CMA-ES searches the sampling prior's leading directions that hold this "
                         "share of its variance (1: the whole latent space)")
+    o.add_argument("--population", type=int, default=None,
+                   help="CMA-ES candidates per generation (default: 4 + floor(3 ln k) for k "
+                        "searched directions)")
     o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
     o.set_defaults(func=cmd_optimize)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "

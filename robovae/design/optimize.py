@@ -14,9 +14,10 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
 
   CMA-ES over ``y`` starts at ``0`` with covariance ``I`` and step size ``sigma_0 = 1``, so that
   its first generation is spread like the prior samples it competes with (``variance = 1``:
-  the whole space, ``k = d``); default population ``4 + floor(3 ln k)``, seeded with ``seed``;
-  it minimises ``-score``. The directions left out hold the posterior's collapsed latents,
-  where a d-dimensional CMA-ES spends most of its budget learning nothing (docs/design.md);
+  the whole space, ``k = d``); population ``population`` (default ``4 + floor(3 ln k)``, the
+  ``cmaes`` default), seeded with ``seed``; it minimises ``-score``. The directions left out
+  hold the posterior's collapsed latents, where a d-dimensional CMA-ES spends most of its
+  budget learning nothing (docs/design.md);
 - ``prior``: random samples of the model's sampling prior, what ``robovae generate`` draws
   (:meth:`robovae.model.vae.RoboVAE.prior_latent`: the fitted latent mixture, or
   ``N(0, I)``; generator seeded by ``(seed, i)``);
@@ -36,13 +37,14 @@ Output folder ``out``:
   procedural seed), rewritten atomically after each round. Re-running with the same ``out``
   continues from it: CMA-ES is replayed from the logged scores (its candidates are
   deterministic for the seed; a mismatch is refused), the baselines skip logged indices. A log
-  of other settings (model, task, seed) is refused; a larger ``--budget`` extends the run.
+  of other settings (model, task, seed, search space, population) is refused; a larger
+  ``--budget`` extends the run.
 - ``best/<method>/rank_<k>/robot.xml`` (+ ``scene.xml``): the ``top`` best robots per method,
   rewritten at the end; ``convergence.png``: best score so far against evaluations.
 
 Bad input is refused with one line before anything is written: an unknown task, a budget
-``<= 0``, a ``variance`` outside ``(0, 1]``, a checkpoint that is not one, an ``out`` that is
-a file or holds a log of another run.
+``<= 0``, a ``variance`` outside ``(0, 1]``, a population below 2, a checkpoint that is not
+one, an ``out`` that is a file or holds a log of another run.
 """
 
 from __future__ import annotations
@@ -130,7 +132,8 @@ class _Run:
     """State of one optimisation folder: settings, log, model, CMA-ES."""
 
     def __init__(self, model: RoboVAE, task: str, budget: int, out: Path, seed: int,
-                 jobs: int, top: int, variance: float) -> None:
+                 jobs: int, top: int, variance: float, population: int | None = None
+                 ) -> None:
         from cmaes import CMA
 
         self.model, self.task, self.budget, self.out = model, task, budget, out
@@ -140,13 +143,17 @@ class _Run:
         mix = model.sampling_mixture()
         mean, cov = mix.moments() if mix is not None else (np.zeros(self.dim), np.eye(self.dim))
         self.origin, self.basis = mean, principal_basis(cov, variance)
+        k = self.basis.shape[1]
+        self.cma = CMA(mean=np.zeros(k), sigma=1.0, seed=seed, population_size=population)
         self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
                          "latent_dim": self.dim, "score_seed": 0,
                          "score_version": SCORE_VERSION, "cma_start": "prior moments",
-                         "cma_variance": variance, "cma_dim": self.basis.shape[1]}
+                         "cma_variance": variance, "cma_dim": k,
+                         "cma_population": self.cma.population_size}
+        # logs written before the population was a setting ran the cmaes default
+        self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
         self.log = {"settings": self.settings, "budget": budget,
                     "evaluations": {m: [] for m in METHODS}}
-        self.cma = CMA(mean=np.zeros(self.basis.shape[1]), sigma=1.0, seed=seed)
         self.pending: list[dict] = []  # evaluated part of the CMA-ES generation being asked
 
     def ask(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -160,12 +167,13 @@ class _Run:
         if not path.is_file():
             return
         old = json.loads(path.read_text())
-        if old.get("settings") != self.settings:
-            diff = ", ".join(k for k in self.settings
-                             if old.get("settings", {}).get(k) != self.settings[k])
+        settings = dict(old.get("settings", {}))
+        settings.setdefault("cma_population", self._default_population)
+        if settings != self.settings:
+            diff = ", ".join(k for k in self.settings if settings.get(k) != self.settings[k])
             raise RobovaeError(f"robovae: {path}: log of another run ({diff} differ); use "
                                "another --out")
-        self.log["evaluations"] = old["evaluations"]
+        self.log["evaluations"] = old["evaluations"]  # written back with the new settings
         done = self.log["evaluations"]["cma"]
         pop = self.cma.population_size
         for g in range(0, len(done) - len(done) % pop, pop):
@@ -276,16 +284,17 @@ def _plot(run: _Run, path: Path) -> Path:
 
 def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
              seed: int = 0, jobs: int = 0, top: int = 3, progress: bool = True,
-             variance: float = 0.95) -> dict:
-    """Run (or continue) an optimisation (module docstring).
+             variance: float = 0.95, population: int | None = None) -> dict:
+    """Run (or continue) an optimisation (module docstring). ``population``: CMA-ES candidates
+    per generation (None: ``4 + floor(3 ln k)``); each round scores as many baseline robots.
 
     Returns:
         per method ``evaluations``, ``best`` score and ``best_index``; plus ``out``, ``log``,
         ``plot``.
 
     Raises:
-        RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``, bad
-            checkpoint, ``out`` not usable.
+        RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
+            ``population < 2``, bad checkpoint, ``out`` not usable.
     """
     if task not in TASKS:
         raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
@@ -295,11 +304,13 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         raise RobovaeError(f"robovae: --top must be >= 1, got {top}")
     if not 0.0 < variance <= 1.0:
         raise RobovaeError(f"robovae: --variance must be in (0, 1], got {variance}")
+    if population is not None and population < 2:
+        raise RobovaeError(f"robovae: --population must be >= 2, got {population}")
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
     model = ckpt if isinstance(ckpt, RoboVAE) else load_model(ckpt)
-    run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance)
+    run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population)
     run.load()
     out.mkdir(parents=True, exist_ok=True)
     from tqdm.auto import tqdm

@@ -144,6 +144,7 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys):
     (["--task", "walk", "--budget", "0"], "--budget must be > 0"),
     (["--task", "walk", "--budget", "-3"], "--budget must be > 0"),
     (["--task", "walk", "--budget", "2", "--variance", "0"], "--variance must be in (0, 1]"),
+    (["--task", "walk", "--budget", "2", "--population", "1"], "--population must be >= 2"),
 ])
 def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, message):
     _, _, ckpt = trained_nodes
@@ -169,3 +170,34 @@ def test_optimize_refuses_a_bad_checkpoint_and_another_runs_log(trained_nodes, t
     err = capsys.readouterr().err
     assert "log of another run (task differ)" in err and err.count("\n") == 1
     assert (out / "log.json").read_text() == before
+
+
+def test_optimize_population_is_a_setting_of_the_run(trained_nodes, tmp_path, capsys):
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "pop"
+    optimize(ckpt, "stand", 3, out, seed=2, jobs=1, top=1, progress=False, variance=0.5,
+             population=4)
+    log = json.loads((out / "log.json").read_text())
+    assert log["settings"]["cma_population"] == 4
+    assert [len(log["evaluations"][m]) for m in METHODS] == [3, 3, 3]  # a round cut at 3
+    # without --population: the cmaes default, 4 + floor(3 ln k) for k searched directions
+    default = tmp_path / "default"
+    optimize(ckpt, "stand", 3, default, seed=2, jobs=1, top=1, progress=False, variance=0.5)
+    dlog = json.loads((default / "log.json").read_text())
+    k = dlog["settings"]["cma_dim"]
+    assert dlog["settings"]["cma_population"] == 4 + int(np.floor(3 * np.log(k)))
+    # resuming with another population is refused before anything changes
+    before = (out / "log.json").read_text()
+    assert main(["optimize", "--ckpt", str(ckpt), "--task", "stand", "--budget", "4",
+                 "--out", str(out), "--seed", "2", "--variance", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert "log of another run (cma_population differ)" in err and err.count("\n") == 1
+    assert (out / "log.json").read_text() == before
+    # a log written before the population was recorded ran the default: it resumes
+    old = json.loads((default / "log.json").read_text())
+    del old["settings"]["cma_population"]
+    (default / "log.json").write_text(json.dumps(old))
+    optimize(ckpt, "stand", 4, default, seed=2, jobs=1, top=1, progress=False, variance=0.5)
+    resumed = json.loads((default / "log.json").read_text())
+    assert resumed["evaluations"]["cma"][:3] == dlog["evaluations"]["cma"]
+    assert resumed["settings"]["cma_population"] == dlog["settings"]["cma_population"]
