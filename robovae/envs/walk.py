@@ -155,7 +155,8 @@ def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco
         _root_body(spec, root).add_freejoint()
         model = _compile(spec)
     data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    with capture_mujoco_warnings():  # a near-singular robot warns; the episode judges it
+        mujoco.mj_forward(model, data)
     lo, hi = robot_bounds(model, data)
     floor = has_floor(model)
     if not floor:
@@ -176,7 +177,8 @@ def _floor_below(model: mujoco.MjModel, lowest: float) -> float:
     """Height of the highest upward-facing world plane not above ``lowest`` (``lowest`` when
     the floor is a height field or a tilted plane)."""
     data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    with capture_mujoco_warnings():
+        mujoco.mj_forward(model, data)
     plane = int(mujoco.mjtGeom.mjGEOM_PLANE)
     z = [float(data.geom_xpos[g, 2]) for g in range(model.ngeom)
          if model.geom_bodyid[g] == 0 and model.geom_type[g] == plane

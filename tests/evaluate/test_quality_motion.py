@@ -166,3 +166,38 @@ def test_the_validators_model_gives_the_same_measures(tmp_path) -> None:
         assert {k: fresh[k] for k in same} == {k: reused[k] for k in same}
         # the standing test simulated on the stage's data and left it at rest
         assert st.data.time == 0 and (st.data.qpos == st.model.qpos0).all()
+
+
+def test_a_near_singular_robot_is_measured_without_printing_mujoco_warnings(
+        tmp_path, monkeypatch, capfd) -> None:
+    """Two hinges with one axis in one body make the inertia matrix singular: MuJoCo warns at
+    every ``mj_forward``. The measures and scores judge such a robot; MuJoCo's message must
+    not reach the terminal or a ``MUJOCO_LOG.TXT`` in the working directory."""
+    from robovae.design.score import score_robot
+    from robovae.evaluate.quality.attachment import attachment
+
+    spec = stick(actuated=True)
+    spec.body("arm").add_joint(name="twin", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+    spec.add_actuator(target="twin", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    spec.compile()
+    path = tmp_path / "robot.xml"
+    path.write_text(spec.to_xml())
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    monkeypatch.chdir(tmp_path)
+    mujoco.set_mju_user_warning(lambda msg: None)  # this check's own forward stays quiet
+    try:
+        mujoco.mj_forward(model, data)
+    finally:
+        mujoco.set_mju_user_warning(None)
+    assert data.warning[mujoco.mjtWarning.mjWARN_INERTIA].number  # the robot does warn
+    capfd.readouterr()
+    gait(path, rollouts=2, seconds=0.2)
+    standing(path)
+    attachment(path)
+    check_robot(path)
+    for task in ("walk", "stand", "reach"):
+        score_robot(path, task)
+    out, err = capfd.readouterr()
+    assert "WARNING" not in out + err
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()

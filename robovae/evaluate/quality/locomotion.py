@@ -144,7 +144,8 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     ctrl = sinusoid_controls(model, amp, phase, freq, steps)
     data = mujoco.MjData(model)
     data.qpos[:] = rest_pose(model)
-    mujoco.mj_forward(model, data)
+    with capture_mujoco_warnings():
+        mujoco.mj_forward(model, data)
     up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
     bodies = np.flatnonzero(model.body_rootid == model.body_rootid[root])
     com_limit = _com_z(model, data, bodies) + MAX_RISE * st.extent
