@@ -88,6 +88,14 @@ def capture_mujoco_warnings() -> Iterator[list[str]]:
         mujoco.set_mju_user_warning(previous)
 
 
+def quiet_forward(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """``mujoco.mj_forward`` with MuJoCo's warnings collected (:func:`capture_mujoco_warnings`)
+    instead of printed: a near-singular robot warns at rest, the measures judge it themselves
+    (``data.warning`` still counts the warnings)."""
+    with capture_mujoco_warnings():
+        mujoco.mj_forward(model, data)
+
+
 def _check_spec(path: Path, spec: mujoco.MjSpec) -> None:
     """Refuse specs whose compilation would allocate absurd amounts of memory."""
     if len(spec.bodies) > MAX_BODIES + 1:
@@ -235,4 +243,4 @@ def robot_name(path: Path, spec: mujoco.MjSpec | None = None) -> str:
 
 
 __all__ = ["LoadedRobot", "capture_mujoco_warnings", "drop_missing_assets", "element_name",
-           "load_robot", "robot_name"]
+           "load_robot", "quiet_forward", "robot_name"]

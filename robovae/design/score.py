@@ -42,7 +42,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robovae.data.loading import capture_mujoco_warnings
+from robovae.data.loading import quiet_forward
 from robovae.evaluate.quality.locomotion import gait
 
 __all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_score"]
@@ -96,8 +96,7 @@ def reach_score(path: str | os.PathLike, seed: int = 0, samples: int = 512) -> d
 
     model = load_robot(path).model
     data = mujoco.MjData(model)
-    with capture_mujoco_warnings():
-        mujoco.mj_forward(model, data)
+    quiet_forward(model, data)
     lo_b, hi_b = robot_bounds(model, data)
     size = max(float(np.linalg.norm(hi_b - lo_b)), 1e-6)
     joints = [j for j in range(model.njnt) if model.jnt_type[j] not in (_FREE, _BALL)]

@@ -67,7 +67,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.mujoco.mujoco_env import MujocoEnv
 
-from robovae.data.loading import capture_mujoco_warnings, load_robot
+from robovae.data.loading import capture_mujoco_warnings, load_robot, quiet_forward
 from robovae.data.mjcf import robot_root
 from robovae.errors import RobovaeError
 from robovae.evaluate.camera import robot_bounds
@@ -155,8 +155,7 @@ def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco
         _root_body(spec, root).add_freejoint()
         model = _compile(spec)
     data = mujoco.MjData(model)
-    with capture_mujoco_warnings():  # a near-singular robot warns; the episode judges it
-        mujoco.mj_forward(model, data)
+    quiet_forward(model, data)
     lo, hi = robot_bounds(model, data)
     floor = has_floor(model)
     if not floor:
@@ -177,8 +176,7 @@ def _floor_below(model: mujoco.MjModel, lowest: float) -> float:
     """Height of the highest upward-facing world plane not above ``lowest`` (``lowest`` when
     the floor is a height field or a tilted plane)."""
     data = mujoco.MjData(model)
-    with capture_mujoco_warnings():
-        mujoco.mj_forward(model, data)
+    quiet_forward(model, data)
     plane = int(mujoco.mjtGeom.mjGEOM_PLANE)
     z = [float(data.geom_xpos[g, 2]) for g in range(model.ngeom)
          if model.geom_bodyid[g] == 0 and model.geom_type[g] == plane

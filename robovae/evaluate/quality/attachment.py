@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from robovae.data.loading import capture_mujoco_warnings
+from robovae.data.loading import quiet_forward
 from robovae.data.mjcf import robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled, extent
 
@@ -104,8 +104,7 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
         data, root, size = robot.data, robot.root, robot.extent
     else:
         data = mujoco.MjData(model)
-        with capture_mujoco_warnings():
-            mujoco.mj_forward(model, data)
+        quiet_forward(model, data)
         root = robot_root(model)[0]
         size = extent(model, data, root)
     geoms = _geoms_by_body(model, root)

@@ -46,7 +46,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from robovae.data.loading import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings, quiet_forward
 from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
 __all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "gait", "gait_speed",
@@ -144,8 +144,7 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     ctrl = sinusoid_controls(model, amp, phase, freq, steps)
     data = mujoco.MjData(model)
     data.qpos[:] = rest_pose(model)
-    with capture_mujoco_warnings():
-        mujoco.mj_forward(model, data)
+    quiet_forward(model, data)
     up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
     bodies = np.flatnonzero(model.body_rootid == model.body_rootid[root])
     com_limit = _com_z(model, data, bodies) + MAX_RISE * st.extent

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from robovae.data.loading import capture_mujoco_warnings, load_robot
+from robovae.data.loading import capture_mujoco_warnings, load_robot, quiet_forward
 from robovae.data.mjcf import robot_root
 from robovae.errors import RobovaeError
 
@@ -134,8 +134,7 @@ def _stage_of(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> Stage
         data = mujoco.MjData(model)
     else:
         mujoco.mj_resetData(model, data)
-    with capture_mujoco_warnings():  # a near-singular robot warns; the measures judge it
-        mujoco.mj_forward(model, data)
+    quiet_forward(model, data)
     root, _ = robot_root(model)
     pts = robot_points(model, data, root)
     floor_z = _floor_height(model, data, float(pts[:, 2].min()))
@@ -161,8 +160,7 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
         spec, model = loaded.spec, loaded.model
     if not _has_floor(model):
         data = mujoco.MjData(model)
-        with capture_mujoco_warnings():
-            mujoco.mj_forward(model, data)
+        quiet_forward(model, data)
         lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
         spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
                                 size=[0, 0, 0.05], pos=[0.0, 0.0, lowest], condim=3)

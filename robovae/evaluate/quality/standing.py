@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from robovae.data.loading import capture_mujoco_warnings
+from robovae.data.loading import capture_mujoco_warnings, quiet_forward
 from robovae.evaluate.quality.stage import (
     MOVING,
     Robot,
@@ -196,8 +196,7 @@ class HeldRun:
         model, data, root = self.model, st.data, st.root
         mujoco.mj_resetData(model, data)
         data.qpos[:] = self.pose
-        with capture_mujoco_warnings():
-            mujoco.mj_forward(model, data)
+        quiet_forward(model, data)
         self.h0 = float(data.xpos[root, 2] - robot_points(model, data, root)[:, 2].min())
         self.up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
         self.state = np.empty(mujoco.mj_stateSize(model, self.STATE))
@@ -227,8 +226,7 @@ class HeldRun:
         """Leave the stage's data at rest (``qpos0``, ``mj_forward`` on the stage's model), for
         the measures at rest; the run continues from ``state``."""
         mujoco.mj_resetData(self.stage.model, self.stage.data)
-        with capture_mujoco_warnings():
-            mujoco.mj_forward(self.stage.model, self.stage.data)
+        quiet_forward(self.stage.model, self.stage.data)
 
 
 #: Seconds of the first segment of the standing test: the validation's simulated second
