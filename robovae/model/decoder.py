@@ -33,7 +33,9 @@ message, the node's type and its latent ``w_c`` (``node_latent_dim`` wide; poste
     a = \\mathrm{ReLU}(W_1^l z + W_2^l h_{p \\to c} + W_3^l w_c + E^l_t(t_c)), \\qquad
     f_c = U^l a + V^l w_c
 
-(the root has ``h = 0``). The node latents have a learned conditional prior:
+(the root has ``h = 0``). With ``feature_layers = L > 1`` the feature head is deeper:
+``a <- a + ReLU(F_k a)`` for ``k = 1 .. L - 1`` before ``U^l``. The node latents have a
+learned conditional prior:
 
 .. math:: p(w_c \\mid z, h_{p \\to c}, t_c) = \\mathcal N(\\mu^p, \\mathrm{diag}\\, e^{\\lambda^p}),
           \\quad [\\mu^p, \\lambda^p] = U^p \\mathrm{ReLU}(W_1^p z + W_2^p h_{p \\to c}
@@ -155,16 +157,21 @@ class TreeDecoder(nn.Module):
             belongs to every type.
         max_depth_embed: depths above this share the last depth embedding.
         max_children_embed: child counts above this share the last count embedding.
+        feature_layers: hidden layers of the feature head (at least 1; module docstring).
 
     Raises:
-        ValueError: ``node_latent_dim < 1`` or ``tree_latent_dim`` outside ``[1, latent_dim]``.
+        ValueError: ``node_latent_dim < 1``, ``feature_layers < 1`` or ``tree_latent_dim``
+            outside ``[1, latent_dim]``.
     """
 
     def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
                  node_latent_dim: int, tree_latent_dim: int | None = None,
                  type_mask: Tensor | None = None,
-                 max_depth_embed: int = 32, max_children_embed: int = 16) -> None:
+                 max_depth_embed: int = 32, max_children_embed: int = 16,
+                 feature_layers: int = 1) -> None:
         super().__init__()
+        if feature_layers < 1:
+            raise ValueError(f"the feature head needs feature_layers >= 1, got {feature_layers}")
         if node_latent_dim < 1:
             raise ValueError(f"the decoder needs node latents (node_latent_dim >= 1), "
                              f"got {node_latent_dim}")
@@ -189,6 +196,8 @@ class TreeDecoder(nn.Module):
         self.W2_l = nn.Linear(hidden_dim, hidden_dim, bias=False)
         self.W3_l = nn.Linear(node_latent_dim, hidden_dim, bias=False)
         self.type_l = nn.Embedding(num_types, hidden_dim)
+        self.F_l = nn.ModuleList(nn.Linear(hidden_dim, hidden_dim)
+                                 for _ in range(feature_layers - 1))
         self.U_l = nn.Linear(hidden_dim, feat_dim)
         self.V_l = nn.Linear(node_latent_dim, feat_dim, bias=False)
         # the node latents' conditional prior
@@ -213,6 +222,8 @@ class TreeDecoder(nn.Module):
         """Features ``[M, d]`` of new nodes (eq. 10, module docstring) from ``zl = W_1^l z``,
         the parent's message ``h``, the node latents ``w`` and the nodes' types."""
         a = torch.relu(zl + self.W2_l(h) + self.W3_l(w) + self.type_l(node_type))
+        for layer in self.F_l:
+            a = a + torch.relu(layer(a))
         return self.U_l(a) + self.V_l(w)
 
     def node_prior(self, zp: Tensor, h: Tensor, node_type: Tensor) -> tuple[Tensor, Tensor]:

@@ -93,6 +93,8 @@ class RoboVAE(L.LightningModule):
             training (0: none).
         prior: the sampling prior of :meth:`sample_prior` and :meth:`sample`: ``mixture``
             (that mixture, when fitted) or ``standard`` (``N(0, I)``, the VAE's own prior).
+        feature_layers: hidden layers of the decoder's feature head
+            (:mod:`robovae.model.decoder`).
     """
 
     def __init__(
@@ -115,6 +117,7 @@ class RoboVAE(L.LightningModule):
         tree_latent_dim: int | None = None,
         prior_components: int = 64,
         prior: str = "mixture",
+        feature_layers: int = 1,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -135,7 +138,8 @@ class RoboVAE(L.LightningModule):
         self.encoder = TreeEncoder(fs.dim, hidden_dim, latent_dim - tree_latent_dim,
                                    node_latent_dim)
         self.decoder = TreeDecoder(fs.dim, fs.num_node_types, hidden_dim, latent_dim,
-                                   node_latent_dim, tree_latent_dim, type_mask=fs.type_mask())
+                                   node_latent_dim, tree_latent_dim, type_mask=fs.type_mask(),
+                                   feature_layers=feature_layers)
         self.training_robots: list[dict] = []
 
     # --- data in model units -------------------------------------------------------------

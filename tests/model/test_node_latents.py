@@ -25,10 +25,11 @@ DW = 6
 VARIED = (2, 0.0)
 
 
-def make_decoder() -> TreeDecoder:
+def make_decoder(feature_layers: int = 1) -> TreeDecoder:
     seed, bias = VARIED
     torch.manual_seed(seed)
-    dec = TreeDecoder(FULL.dim, 3, 32, 8, DW, type_mask=FULL.type_mask()).eval()
+    dec = TreeDecoder(FULL.dim, 3, 32, 8, DW, type_mask=FULL.type_mask(),
+                      feature_layers=feature_layers).eval()
     with torch.no_grad():
         dec.topo.u.bias.add_(bias)
     return dec
@@ -65,12 +66,12 @@ def test_decode_with_given_node_latents_matches_teacher_forcing() -> None:
     check_agrees(dec, z, trees, w, max_nodes, max_depth)
 
 
-@pytest.mark.parametrize("noise", [False, True])
-def test_prior_decoding_matches_teacher_forcing(noise: bool) -> None:
+@pytest.mark.parametrize(("noise", "feature_layers"), [(False, 1), (True, 1), (True, 3)])
+def test_prior_decoding_matches_teacher_forcing(noise: bool, feature_layers: int) -> None:
     """Generation: every node's latent is ``mu^p + sigma^p eps_t`` of the prior that teacher
     forcing computes from the decoded tree, i.e. a fixed point of ``w -> prior(w)`` (reached
     after one sweep per tree level, since a node's prior reads its parent's latent)."""
-    dec = make_decoder()
+    dec = make_decoder(feature_layers)
     torch.manual_seed(100)
     z = torch.randn(12, 8) * 2
     max_nodes, max_depth = 120, 25
@@ -100,6 +101,8 @@ def test_node_latent_inputs_are_checked() -> None:
         dec.decode(z, node_latents=[torch.zeros(3, DW), torch.zeros(3, DW + 1)])
     with pytest.raises(ValueError, match="needs node latents"):
         TreeDecoder(FULL.dim, 3, 32, 8, 0)
+    with pytest.raises(ValueError, match="feature_layers >= 1"):
+        TreeDecoder(FULL.dim, 3, 32, 8, DW, feature_layers=0)
 
 
 def test_node_kl_is_the_gaussian_kl() -> None:
@@ -134,11 +137,13 @@ def test_soft_clamp_bounds_log_variances() -> None:
                                atol=1e-3, rtol=0)
 
 
-def test_every_parameter_gets_a_gradient_with_node_latents() -> None:
+@pytest.mark.parametrize("feature_layers", [1, 3])
+def test_every_parameter_gets_a_gradient_with_node_latents(feature_layers: int) -> None:
     torch.manual_seed(0)
     batch = random_batch()
     enc = TreeEncoder(FULL.dim, 32, 8, node_latent_dim=DW)
-    dec = TreeDecoder(FULL.dim, 3, 32, 8, DW, type_mask=FULL.type_mask())
+    dec = TreeDecoder(FULL.dim, 3, 32, 8, DW, type_mask=FULL.type_mask(),
+                      feature_layers=feature_layers)
     sched = tree_schedule(batch)
     mu, logvar = enc(batch, sched)
     wm, wlv = enc.node_readout(*enc.messages(batch, sched), sched)
