@@ -27,6 +27,7 @@ from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
 
 from robovae.data.datamodule import RobotDataModule
+from robovae.errors import RobovaeError
 from robovae.evaluate.callbacks import ReconstructionMetrics
 from robovae.model.checkpoint import check_current_model, read_checkpoint, refusal
 from robovae.model.vae import RoboVAE
@@ -65,6 +66,17 @@ class RoboVAECLI(LightningCLI):
             kwargs["weights_only"] = True
 
     before_fit = before_validate = before_test = before_predict = _weights_only
+
+    def instantiate_classes(self) -> None:
+        """Build the model, data module and trainer; a setting a constructor refuses (its
+        ``ValueError``) is one line naming the config files, not a traceback."""
+        try:
+            super().instantiate_classes()
+        except ValueError as e:
+            files = self.config[self.subcommand].get("config") or ["command line"]
+            where = ", ".join(str(getattr(f, "relative", f)) for f in files)
+            msg = " ".join(str(e).split()).removeprefix("robovae: ")
+            raise RobovaeError(f"robovae: {where}: invalid setting: {msg}") from None
 
 
 def run_lightning_cli(argv: Sequence[str] | None = None) -> RoboVAECLI:

@@ -233,3 +233,21 @@ def test_from_z_reconstruction_and_latent_costs(trained_nodes):
                       "NELBO_node"}
     assert bool((costs["kl_tree"] > 0).all() and (costs["kl_tree"] < costs["kl_z"]).all())
     assert 0 <= m["RA_z"] <= 1 and m["KL_z"] == pytest.approx(float(costs["kl_z"].mean()))
+
+
+@pytest.mark.parametrize(("setting", "message"), [
+    ("--model.feature_layers=0", "the feature head needs feature_layers >= 1, got 0"),
+    ("--model.tree_latent_dim=0", "tree_latent_dim must be in [1, latent_dim), got 0"),
+])
+def test_cli_refuses_an_invalid_model_setting_in_one_line(setting, message, tmp_path, capsys,
+                                                          monkeypatch):
+    """A value a constructor refuses is one line naming the config file, exit code 2, and no
+    run folder is written."""
+    monkeypatch.chdir(tmp_path)
+    tiny = REPO / "configs" / "tiny.yaml"
+    code = main(["fit", "--config", str(tiny), setting, f"--data.root={tmp_path / 'cache'}"])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err, err
+    assert err.startswith(f"robovae: {tiny}: invalid setting: {message}"), err
+    assert not (tmp_path / "runs").exists()
