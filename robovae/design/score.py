@@ -17,7 +17,8 @@ measures being written in :mod:`robovae.evaluate` can replace these behind the s
   per second, so that size alone does not win. When the robot **falls** — its root's up axis
   tilts more than ``max_tilt`` (60°, the bound of ``robovae/Walk-v0``'s health) from vertical
   at a 10 ms sample — the displacement stops counting there (tumbling is not walking) but the
-  time still runs to the end: falling early costs. A rollout that diverges scores 0. ``score``
+  time still runs to the end: falling early costs. A rollout that diverges scores 0, and so
+  does a robot whose root body is moved by its own motor (an actuated base). ``score``
   is the best gait's speed; ``speed`` is the same in m/s. (The quality table's locomotion
   measure searches 64 gaits of 4 s and does not stop at falls.)
 - **stand** (:func:`stand_score`): :func:`robovae.evaluate.behaviour.standing_test` for 3 s
@@ -49,8 +50,9 @@ __all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score"
 
 #: Changes whenever a measure changes: an optimisation log of another version is not continued.
 #: 3: the walk score is the quality measure's gait search (issue 22); 4: rollouts that fly
-#: (centre of mass above half the extent over rest, ``locomotion.MAX_RISE``) score 0.
-SCORE_VERSION = 4
+#: (centre of mass above half the extent over rest, ``locomotion.MAX_RISE``) score 0;
+#: 5: robots with an actuated base (``locomotion.actuated_base``) score 0.
+SCORE_VERSION = 5
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _BALL = int(mujoco.mjtJoint.mjJNT_BALL)
@@ -65,8 +67,11 @@ def walk_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds:
     _, scene = walk_scene(path)
     g = gait(scene.model, rollouts=trials, seconds=seconds, seed=seed,
              settle=settle / seconds, max_tilt=max_tilt)
-    return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
-            "frequency": g.frequency}
+    out = {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
+           "frequency": g.frequency}
+    if g.actuated_base:
+        out["error"] = "actuated base: a motor moves the root body relative to the world"
+    return out
 
 
 def stand_score(path: str | os.PathLike, seed: int = 0, seconds: float = 3.0) -> dict:

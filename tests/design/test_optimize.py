@@ -44,6 +44,15 @@ def test_scores_of_robots_that_cannot_do_the_task(tmp_path):
     passive.write_text(spec.to_xml())
     res = score_robot(passive, "walk")
     assert res["score"] == 0.0 and "no actuators" in res["error"]
+    gantry = mujoco.MjSpec()  # a box moved by motors on its slides to the world
+    body = gantry.worldbody.add_body(name="cart", pos=[0, 0, 0.1])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1])
+    for name, axis in (("x", [1, 0, 0]), ("z", [0, 0, 1])):
+        body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
+        gantry.add_actuator(target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT).gear[0] = 20.0
+    (tmp_path / "gantry.xml").write_text(gantry.to_xml())
+    res = score_robot(tmp_path / "gantry.xml", "walk")
+    assert res["score"] == 0.0 and res["error"].startswith("actuated base")
     junk = tmp_path / "junk.xml"
     junk.write_text("junk")
     assert score_robot(junk, "stand")["score"] == 0.0

@@ -10,6 +10,7 @@ import pytest
 from robovae.data.procedural import ProceduralConfig, procedural_spec
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality import gait, gait_speed, stage, standing
+from robovae.evaluate.quality.locomotion import actuated_base
 from robovae.evaluate.quality.measure import measure
 from robovae.evaluate.quality.stage import prepare, rest_pose, stage_compiled
 from robovae.generate.validate import check_robot
@@ -95,21 +96,41 @@ def test_a_gait_that_falls_stops_counting() -> None:
     assert 0.0 <= gait(quad, max_tilt=20.0, **FAST).speed <= free.speed
 
 
-def cart(lift_gear: float) -> mujoco.MjSpec:
-    """A 0.2 m box on x and z slides to the world, each with a motor: the z motor of gear
-    ``lift_gear`` (control range ``[0.9, 1]``) pushes it up whatever the gait (an external
-    force, standing in for numerical energy)."""
+def gantry() -> mujoco.MjSpec:
+    """A 0.2 m box on x and z slides to the world, each with a motor: its root is moved by its
+    own motors."""
     spec = mujoco.MjSpec()
     body = spec.worldbody.add_body(name="cart", pos=[0, 0, 0.1])
+    for name in ("x", "z"):
+        body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE,
+                       axis=[1, 0, 0] if name == "x" else [0, 0, 1])
+        spec.add_actuator(target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT).gear[0] = 20.0
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1], mass=1.0)
+    return spec
+
+
+def cart(lift_gear: float) -> mujoco.MjSpec:
+    """A box on passive x and z slides to the world, rolled by a motorised wheel; a piston on a
+    vertical slide with a motor of gear ``lift_gear`` (control range ``[0.9, 1]``) pushes on
+    the floor whatever the gait and, when strong, lifts the cart off it (standing in for
+    numerical energy)."""
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="cart", pos=[0, 0, 0.15])
     for name, axis in (("x", [1, 0, 0]), ("z", [0, 0, 1])):
         body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1], mass=1.0)
-    for name, gear in (("x", 20.0), ("z", lift_gear)):
-        act = spec.add_actuator(target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        act.gear[0] = gear
-        if name == "z":
-            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            act.ctrlrange = [0.9, 1.0]
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.05], mass=1.0)
+    wheel = body.add_body(name="wheel", pos=[0, 0, -0.05])
+    wheel.add_joint(name="roll", axis=[0, 1, 0])
+    wheel.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.1, 0, 0],
+                   fromto=[0, 0.11, 0, 0, 0.16, 0], mass=0.3)
+    piston = body.add_body(name="piston", pos=[0.15, 0, -0.05])
+    piston.add_joint(name="push", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, -1])
+    piston.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02, 0.02, 0.02], mass=0.1)
+    spec.add_actuator(target="roll", trntype=mujoco.mjtTrn.mjTRN_JOINT).gear[0] = 5.0
+    act = spec.add_actuator(target="push", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    act.gear[0] = lift_gear
+    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    act.ctrlrange = [0.9, 1.0]
     return spec
 
 
@@ -119,6 +140,15 @@ def test_a_rollout_that_flies_does_not_count() -> None:
     grounded, flying = gait(cart(0.0), **FAST), gait(cart(200.0), **FAST)
     assert grounded.speed > 0 and grounded.unstable == 0
     assert flying.speed == 0.0 and flying.unstable == FAST["rollouts"]
+
+
+def test_a_robot_moved_by_a_motor_on_its_root_does_not_walk() -> None:
+    """Motors on the joints between the root and the world make a gantry: speed 0; the same
+    slides unactuated (a planar robot) are walked by the robot's other motors."""
+    model = gantry().compile()
+    assert actuated_base(model, 1) and not actuated_base(cart(0.0).compile(), 1)
+    r = gait(gantry(), **FAST)
+    assert r.actuated_base and r.speed == 0.0 and r.unstable == 0
 
 
 def test_a_robot_without_actuators_does_not_move() -> None:

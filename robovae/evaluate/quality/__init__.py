@@ -22,11 +22,11 @@ split-half reference, k-NN precision/recall) and :mod:`~robovae.evaluate.quality
 """
 
 from robovae.evaluate.quality.attachment import AttachResult, attachment
-from robovae.evaluate.quality.locomotion import GaitResult, gait, gait_speed
+from robovae.evaluate.quality.locomotion import GaitResult, actuated_base, gait, gait_speed
 from robovae.evaluate.quality.stage import Stage, rest_pose, stage, stage_compiled
 from robovae.evaluate.quality.standing import StandResult, standing
 from robovae.evaluate.quality.symmetry import Anatomy, anatomy
 
-__all__ = ["Anatomy", "AttachResult", "GaitResult", "StandResult", "Stage", "anatomy",
-           "attachment", "gait", "gait_speed", "rest_pose", "stage", "stage_compiled",
+__all__ = ["Anatomy", "AttachResult", "GaitResult", "StandResult", "Stage", "actuated_base",
+           "anatomy", "attachment", "gait", "gait_speed", "rest_pose", "stage", "stage_compiled",
            "standing"]

@@ -25,7 +25,11 @@ does (Menagerie's Spot, driven open loop by its strong position servos, leaves t
 about half of the 64 gaits), and so does the simulator's numerical energy: a 77-body robot
 with motor gears up to 11,000 that CMA-ES over ``z`` found rose 98 m in 3 s without touching
 the floor, at 26 m/s.
-:func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0. It
+:func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0, and
+so does a robot with an **actuated base** (:func:`actuated_base`): a motor on a joint between
+its root body and the world moves the root by itself — a gantry, not locomotion (CMA-ES over
+``z`` found a 15-tonne blob whose six actuated root slides carried it 65 m/s). Unactuated root
+joints (the planar slides and hinge of dm_control's cheetah, walker, hopper) count. It
 is a random search: the number is a lower bound on what the body can do with such gaits,
 comparable between robots measured with the same budget and seed.
 
@@ -49,7 +53,7 @@ from mujoco import rollout
 from robovae.data.loading import capture_mujoco_warnings, quiet_forward
 from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
-__all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "gait", "gait_speed",
+__all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "actuated_base", "gait", "gait_speed",
            "sinusoid_controls"]
 
 #: Seconds between the samples that look for a fall (``max_tilt``) or a flight.
@@ -72,6 +76,19 @@ class GaitResult:
     unstable: int  # rollouts that went unstable
     rollouts: int
     seconds: float  # simulated per rollout
+    actuated_base: bool = False  # scored 0: a motor drives the root relative to the world
+
+
+_JOINT_TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
+
+
+def actuated_base(model: mujoco.MjModel, root: int) -> bool:
+    """Whether an actuator with a joint transmission drives a joint of body ``root`` (the
+    robot's root, whose joints connect it to the world): the root then moves by its own motor,
+    which is not locomotion (module docstring)."""
+    on_joint = np.isin(model.actuator_trntype, _JOINT_TRANSMISSIONS)
+    joints = model.actuator_trnid[on_joint, 0]
+    return bool(np.any(model.jnt_bodyid[joints] == root))
 
 
 def sinusoid_controls(model: mujoco.MjModel, amplitude: np.ndarray, phase: np.ndarray,
@@ -134,9 +151,10 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     dt = model.opt.timestep
     steps = min(max(1, round(seconds / dt)), max_steps)
     nan = math.nan
-    if model.nu == 0 or rollouts <= 0:
+    driven = model.nu > 0 and actuated_base(model, root)
+    if model.nu == 0 or rollouts <= 0 or driven:
         return GaitResult(0.0, 0.0, st.extent, nan, np.zeros(model.nu), np.zeros(model.nu),
-                          0, max(rollouts, 0), steps * dt)
+                          0, max(rollouts, 0), steps * dt, driven)
     rng = np.random.default_rng(seed)
     amp = rng.uniform(0.0, 1.0, (rollouts, model.nu))
     phase = rng.uniform(0.0, 2 * np.pi, (rollouts, model.nu))
