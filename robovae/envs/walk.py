@@ -17,7 +17,10 @@ load) and turned into a scene with ``mujoco.MjSpec`` edits, never XML strings:
   A root with hinge/slide joints (planar robots such as the half-cheetah) is kept as it is.
 - **actuators**: every actuator of the file is an action. A robot without actuators cannot
   walk: :class:`~robovae.errors.RobovaeError` ``robovae: <file>: no actuators to walk with
-  (actuator)``.
+  (actuator)``; nor can a robot with an **actuated base**, a motor on a joint between its root
+  body and the world (:func:`~robovae.evaluate.quality.locomotion.actuated_base`: a gantry that
+  carries the root, not legs): ``robovae: <file>: a motor moves its root body relative to the
+  world (actuated base), nothing to walk with (actuator)``.
 
 **Actions** lie in ``[-1, 1]^nu`` (``float32``) and are scaled to each actuator's control range
 ``[lo, hi]``: ``ctrl = lo + (a + 1) (hi - lo) / 2``; an actuator without ``ctrlrange``
@@ -71,6 +74,7 @@ from robovae.data.loading import capture_mujoco_warnings, load_robot, quiet_forw
 from robovae.data.mjcf import robot_root
 from robovae.errors import RobovaeError
 from robovae.evaluate.camera import robot_bounds
+from robovae.evaluate.quality.locomotion import actuated_base
 from robovae.evaluate.scene import add_floor, has_floor
 
 __all__ = ["ROOT_DIM", "Layout", "WalkEnv", "walk_scene"]
@@ -143,7 +147,7 @@ def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco
 
     Raises:
         RobotFileError: the file cannot be loaded.
-        RobovaeError: the robot has no actuators.
+        RobovaeError: the robot has no actuators, or an actuated base.
     """
     path = Path(robot)
     loaded = load_robot(path)
@@ -151,6 +155,9 @@ def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco
     if model.nu == 0:
         raise RobovaeError(f"robovae: {path}: no actuators to walk with (actuator)")
     root, _ = robot_root(model)
+    if actuated_base(model, root):
+        raise RobovaeError(f"robovae: {path}: a motor moves its root body relative to the world "
+                           "(actuated base), nothing to walk with (actuator)")
     if free_base and model.body_jntnum[root] == 0:
         _root_body(spec, root).add_freejoint()
         model = _compile(spec)

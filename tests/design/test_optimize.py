@@ -52,7 +52,7 @@ def test_scores_of_robots_that_cannot_do_the_task(tmp_path):
         gantry.add_actuator(target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT).gear[0] = 20.0
     (tmp_path / "gantry.xml").write_text(gantry.to_xml())
     res = score_robot(tmp_path / "gantry.xml", "walk")
-    assert res["score"] == 0.0 and res["error"].startswith("actuated base")
+    assert res["score"] == 0.0 and "(actuated base)" in res["error"]
     junk = tmp_path / "junk.xml"
     junk.write_text("junk")
     assert score_robot(junk, "stand")["score"] == 0.0

@@ -137,6 +137,15 @@ def test_bad_robots_raise_one_line(tmp_path):
     no_act = write(spec, tmp_path / "passive.xml")
     with pytest.raises(RobovaeError, match=r"passive.xml: no actuators to walk with"):
         gymnasium.make("robovae/Walk-v0", robot=no_act)
+    gantry = mujoco.MjSpec()  # a box carried by motors on its slides to the world
+    body = gantry.worldbody.add_body(name="cart", pos=[0, 0, 0.1])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1])
+    for name, axis in (("x", [1, 0, 0]), ("z", [0, 0, 1])):
+        body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
+        gantry.add_actuator(target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    with pytest.raises(RobovaeError, match=r"gantry.xml: a motor moves its root body .* "
+                       r"\(actuated base\)"):
+        WalkEnv(write(gantry, tmp_path / "gantry.xml"))
     junk = tmp_path / "junk.xml"
     junk.write_text("this is not a robot")
     with pytest.raises(RobotFileError) as e:
