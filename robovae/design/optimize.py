@@ -28,8 +28,13 @@ Latent candidates are decoded from ``z`` alone (greedy; with node latents, every
 at its conditional prior mean), written like ``robovae generate`` writes a robot (for walk and
 stand a root joint becomes a floating base; for reach the base stays fixed), and scored by
 :func:`robovae.design.score.score_robot` with score seed 0 (every robot gets the same gait
-search). Evaluation runs in ``jobs`` worker processes (``spawn``), one round at a time: a CMA
-generation and as many prior and procedural robots, with a progress bar.
+search). A decoding that did not finish its tree (it reached the decoder's node or depth
+limit: a chain cut off, :func:`robovae.model.prior.unfinished`) is not a robot of the model: a
+prior sample redraws its ``z`` as ``robovae generate`` does (up to :data:`PRIOR_REDRAWS` times,
+``draw`` in its record), and a latent still unfinished, or a CMA-ES candidate (its ``z`` is the
+point asked for), scores 0 with ``error`` :data:`UNFINISHED`, without simulation. Evaluation
+runs in ``jobs`` worker processes (``spawn``), one round at a time: a CMA generation and as
+many prior and procedural robots, with a progress bar.
 
 Output folder ``out``:
 
@@ -63,12 +68,17 @@ from robovae.design.score import SCORE_VERSION, TASKS, score_robot
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.model.checkpoint import load_model
+from robovae.model.prior import unfinished
 from robovae.model.vae import RoboVAE
 
 __all__ = ["METHODS", "best_so_far", "optimize", "principal_basis", "procedural_seed"]
 
 METHODS = ("cma", "prior", "procedural")
 LOG = "log.json"
+#: Redraws of a prior sample whose decoding did not finish its tree (as ``robovae generate``).
+PRIOR_REDRAWS = 4
+#: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
+UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 
 
 def procedural_seed(seed: int, index: int) -> int:
@@ -149,7 +159,8 @@ class _Run:
                          "latent_dim": self.dim, "score_seed": 0,
                          "score_version": SCORE_VERSION, "cma_start": "prior moments",
                          "cma_variance": variance, "cma_dim": k,
-                         "cma_population": self.cma.population_size}
+                         "cma_population": self.cma.population_size,
+                         "unfinished": f"0; prior redraws {PRIOR_REDRAWS}"}
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
         self.log = {"settings": self.settings, "budget": budget,
@@ -193,6 +204,24 @@ class _Run:
         z = torch.as_tensor(np.stack(zs), dtype=torch.float64)
         return self.model.decode(z)
 
+    def _redraw_prior(self, jobs: list[tuple[str, int, object]], graphs: dict[int, object]
+                      ) -> dict[int, int]:
+        """Redraw the prior baseline's unfinished decodings as ``robovae generate`` does
+        (:func:`~robovae.model.prior.draw_robots`: draw ``k`` of robot ``i`` from its stream
+        ``(seed, i, 2, k)``, at most :data:`PRIOR_REDRAWS` times); ``jobs`` and ``graphs`` are
+        updated in place. Returns the draw kept per prior job."""
+        draws = {}
+        for k, (m, i, _) in enumerate(jobs):
+            if m != "prior":
+                continue
+            draws[k] = 0
+            while unfinished(self.model, graphs[k]) and draws[k] < PRIOR_REDRAWS:
+                draws[k] += 1
+                z = self.model.prior_latent(self.seed, i, draw=draws[k]).double().numpy()
+                jobs[k] = (m, i, z)
+                graphs[k] = self._decode([z])[0]
+        return draws
+
     def round(self, pool) -> int:
         """One CMA-ES generation plus as many baseline robots; returns evaluations done."""
         ev = self.log["evaluations"]
@@ -213,16 +242,26 @@ class _Run:
             jobs.append(("procedural", i, procedural_seed(self.seed, i)))
         if not jobs:
             return 0
-        latent_jobs = [j for j in jobs if j[0] != "procedural"]
-        graphs = iter(self._decode([j[2] for j in latent_jobs]) if latent_jobs else [])
+        latent_jobs = [k for k, j in enumerate(jobs) if j[0] != "procedural"]
+        graphs: dict[int, object] = {}
+        draws: dict[int, int] = {}
+        if latent_jobs:
+            graphs = dict(zip(latent_jobs, self._decode([jobs[k][2] for k in latent_jobs])))
+            draws = self._redraw_prior(jobs, graphs)
         work = self.out / ".work"
-        items = [(m, next(graphs) if m != "procedural" else p, str(work / f"{m}_{i:06d}"),
-                  self.model.feature_set.name, self.task, self.floating) for m, i, p in jobs]
-        results = list(pool.map(_evaluate, items)) if pool else [_evaluate(x) for x in items]
-        for (m, i, p), res in zip(jobs, results):
+        items = [(m, graphs.get(k, p), str(work / f"{m}_{i:06d}"), self.model.feature_set.name,
+                  self.task, self.floating) for k, (m, i, p) in enumerate(jobs)]
+        cut = {k for k, g in graphs.items() if unfinished(self.model, g)}
+        scored = [x for k, x in enumerate(items) if k not in cut]
+        results = iter(list(pool.map(_evaluate, scored)) if pool else
+                       [_evaluate(x) for x in scored])
+        for k, (m, i, p) in enumerate(jobs):
+            res = {"score": 0.0, "error": UNFINISHED} if k in cut else next(results)
             rec = {"index": i, **res}
             rec.update({"seed": p} if m == "procedural" else
                        {"z": [float(v) for v in p]})
+            if k in draws:
+                rec["draw"] = draws[k]
             ev[m].append(rec)
         if left["cma"] > 0:
             gen = ev["cma"][start:start + pop]

@@ -2,18 +2,28 @@
 
 from __future__ import annotations
 
+import copy
 import json
 
 import mujoco
 import numpy as np
 import pytest
+import torch
 
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
-from robovae.design.optimize import METHODS, best_so_far, optimize, principal_basis
+from robovae.design.optimize import (
+    METHODS,
+    PRIOR_REDRAWS,
+    UNFINISHED,
+    best_so_far,
+    optimize,
+    principal_basis,
+)
 from robovae.design.score import reach_score, score_robot, walk_score
 from robovae.envs.walk import walk_scene
 from robovae.evaluate.quality.locomotion import gait
+from robovae.model.prior import unfinished
 
 
 @pytest.fixture(scope="module")
@@ -210,3 +220,28 @@ def test_optimize_population_is_a_setting_of_the_run(trained_nodes, tmp_path, ca
     resumed = json.loads((default / "log.json").read_text())
     assert resumed["evaluations"]["cma"][:3] == dlog["evaluations"]["cma"]
     assert resumed["settings"]["cma_population"] == dlog["settings"]["cma_population"]
+
+
+def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes, tmp_path):
+    """A decoding cut off by the node limit is not a robot: CMA-ES candidates score 0 without
+    simulation, prior samples redraw their latent as robovae generate does."""
+    model = copy.deepcopy(trained_nodes[0]).to(torch.float64)
+    model.hparams.max_nodes = 3  # most of this model's trees are larger: cut off
+    optimize(model, "stand", 6, tmp_path / "opt", seed=0, jobs=1, progress=False)
+    ev = json.loads((tmp_path / "opt" / "log.json").read_text())["evaluations"]
+
+    def decode(z):
+        return model.decode(torch.tensor(np.asarray(z), dtype=torch.float64)[None])[0]
+
+    cut = [unfinished(model, decode(r["z"])) for r in ev["cma"]]
+    assert any(cut)
+    for r, c in zip(ev["cma"], cut):
+        assert (r["error"] == UNFINISHED and r["score"] == 0.0) == c
+    for r in ev["prior"]:
+        k = r["draw"]
+        assert np.allclose(r["z"], model.prior_latent(0, r["index"], draw=k).double().numpy())
+        assert (k == 0 or unfinished(model, decode(
+            model.prior_latent(0, r["index"], draw=k - 1).double().numpy())))
+        assert (r.get("error") == UNFINISHED) == unfinished(model, decode(r["z"]))
+        assert r.get("error") != UNFINISHED or k == PRIOR_REDRAWS
+    assert any(r["draw"] > 0 for r in ev["prior"])
