@@ -29,10 +29,12 @@ at its conditional prior mean), written like ``robovae generate`` writes a robot
 stand a root joint becomes a floating base; for reach the base stays fixed), and scored by
 :func:`robovae.design.score.score_robot` with score seed 0 (every robot gets the same gait
 search). A decoding that did not finish its tree (it reached the decoder's node or depth
-limit: a chain cut off, :func:`robovae.model.prior.unfinished`) is not a robot of the model: a
-prior sample redraws its ``z`` as ``robovae generate`` does (up to :data:`PRIOR_REDRAWS` times,
-``draw`` in its record), and a latent still unfinished, or a CMA-ES candidate (its ``z`` is the
-point asked for), scores 0 with ``error`` :data:`UNFINISHED`, without simulation. Evaluation
+limit: a chain cut off, :func:`robovae.model.prior.unfinished`) is not a robot of the model
+and costs no evaluation: a prior sample redraws its ``z`` as ``robovae generate`` does (up to
+:data:`PRIOR_REDRAWS` times, ``draw`` in its record); CMA-ES asks a new candidate in its place
+(up to :data:`CMA_RESAMPLES` times, ``rejected`` in the record: the resampling ``cmaes`` does
+for candidates out of bounds), so a generation is ranked on robots. A latent still unfinished
+after that scores 0 with ``error`` :data:`UNFINISHED`, without simulation. Evaluation
 runs in ``jobs`` worker processes (``spawn``), one round at a time: a CMA generation and as
 many prior and procedural robots, with a progress bar.
 
@@ -77,6 +79,8 @@ METHODS = ("cma", "prior", "procedural")
 LOG = "log.json"
 #: Redraws of a prior sample whose decoding did not finish its tree (as ``robovae generate``).
 PRIOR_REDRAWS = 4
+#: New CMA-ES candidates asked, at most, in place of one whose decoding did not finish its tree.
+CMA_RESAMPLES = 20
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 
@@ -160,17 +164,30 @@ class _Run:
                          "score_version": SCORE_VERSION, "cma_start": "prior moments",
                          "cma_variance": variance, "cma_dim": k,
                          "cma_population": self.cma.population_size,
-                         "unfinished": f"0; prior redraws {PRIOR_REDRAWS}"}
+                         "unfinished": f"cma resamples {CMA_RESAMPLES}, prior redraws "
+                                       f"{PRIOR_REDRAWS}, then 0"}
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
         self.log = {"settings": self.settings, "budget": budget,
                     "evaluations": {m: [] for m in METHODS}}
         self.pending: list[dict] = []  # evaluated part of the CMA-ES generation being asked
 
-    def ask(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """One CMA-ES generation: its search points ``y`` and their latents ``z``."""
+    def ask(self) -> tuple[list[np.ndarray], list[np.ndarray], list[int]]:
+        """One CMA-ES generation: its search points ``y``, their latents ``z`` and, per point,
+        how many candidates asked before it in its place decoded to an unfinished tree (each
+        replaced by a new ``cma.ask()``, at most :data:`CMA_RESAMPLES` times: the module
+        docstring). Deterministic for the CMA-ES state (a resumed run replays it)."""
         ys = [self.cma.ask() for _ in range(self.cma.population_size)]
-        return ys, [self.origin + self.basis @ y for y in ys]
+        rejected = [0] * len(ys)
+        todo = list(range(len(ys)))
+        while todo:
+            graphs = self._decode([self.origin + self.basis @ ys[k] for k in todo])
+            todo = [k for k, g in zip(todo, graphs)
+                    if unfinished(self.model, g) and rejected[k] < CMA_RESAMPLES]
+            for k in todo:
+                ys[k] = self.cma.ask()
+                rejected[k] += 1
+        return ys, [self.origin + self.basis @ y for y in ys], rejected
 
     def load(self) -> None:
         """Continue from ``log.json`` (module docstring); refuses another run's log."""
@@ -188,7 +205,7 @@ class _Run:
         done = self.log["evaluations"]["cma"]
         pop = self.cma.population_size
         for g in range(0, len(done) - len(done) % pop, pop):
-            ys, zs = self.ask()
+            ys, zs, _ = self.ask()
             self._check_replay(zs, done[g:g + pop])
             self.cma.tell([(y, -r["score"]) for y, r in zip(ys, done[g:g + pop])])
         self.pending = done[len(done) - len(done) % pop:]  # a generation cut by the budget
@@ -229,11 +246,14 @@ class _Run:
         left = {m: self.budget - len(ev[m]) for m in METHODS}
         jobs: list[tuple[str, int, object]] = []
         start = len(ev["cma"]) - len(self.pending)  # index of this generation's first
+        rejected: dict[int, int] = {}  # job -> unfinished CMA-ES candidates resampled
         if left["cma"] > 0:
-            ys, zs = self.ask()
+            ys, zs, asked = self.ask()
             self._check_replay(zs, self.pending)
-            jobs += [("cma", start + k, z) for k, z in enumerate(zs)
-                     if k >= len(self.pending) and start + k < self.budget]
+            for k, z in enumerate(zs):
+                if k >= len(self.pending) and start + k < self.budget:
+                    rejected[len(jobs)] = asked[k]
+                    jobs.append(("cma", start + k, z))
         for k in range(min(pop, left["prior"])):
             i = len(ev["prior"]) + k
             jobs.append(("prior", i, self.model.prior_latent(self.seed, i).double().numpy()))
@@ -262,6 +282,8 @@ class _Run:
                        {"z": [float(v) for v in p]})
             if k in draws:
                 rec["draw"] = draws[k]
+            if k in rejected:
+                rec["rejected"] = rejected[k]
             ev[m].append(rec)
         if left["cma"] > 0:
             gen = ev["cma"][start:start + pop]

@@ -13,6 +13,7 @@ import torch
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
 from robovae.design.optimize import (
+    CMA_RESAMPLES,
     METHODS,
     PRIOR_REDRAWS,
     UNFINISHED,
@@ -223,8 +224,9 @@ def test_optimize_population_is_a_setting_of_the_run(trained_nodes, tmp_path, ca
 
 
 def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes, tmp_path):
-    """A decoding cut off by the node limit is not a robot: CMA-ES candidates score 0 without
-    simulation, prior samples redraw their latent as robovae generate does."""
+    """A decoding cut off by the node limit is not a robot: CMA-ES asks another candidate in
+    its place, prior samples redraw their latent as robovae generate does; what is still
+    unfinished scores 0 without simulation."""
     model = copy.deepcopy(trained_nodes[0]).to(torch.float64)
     model.hparams.max_nodes = 3  # most of this model's trees are larger: cut off
     optimize(model, "stand", 6, tmp_path / "opt", seed=0, jobs=1, progress=False)
@@ -234,9 +236,10 @@ def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes,
         return model.decode(torch.tensor(np.asarray(z), dtype=torch.float64)[None])[0]
 
     cut = [unfinished(model, decode(r["z"])) for r in ev["cma"]]
-    assert any(cut)
+    assert any(r["rejected"] > 0 for r in ev["cma"])
     for r, c in zip(ev["cma"], cut):
         assert (r["error"] == UNFINISHED and r["score"] == 0.0) == c
+        assert not c or r["rejected"] == CMA_RESAMPLES
     for r in ev["prior"]:
         k = r["draw"]
         assert np.allclose(r["z"], model.prior_latent(0, r["index"], draw=k).double().numpy())
