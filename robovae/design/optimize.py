@@ -15,7 +15,10 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
   CMA-ES over ``y`` starts at ``0`` with covariance ``I`` and step size ``sigma_0 = 1``, so that
   its first generation is spread like the prior samples it competes with (``variance = 1``:
   the whole space, ``k = d``); population ``population`` (default ``4 + floor(3 ln k)``, the
-  ``cmaes`` default), seeded with ``seed``; it minimises ``-score``. The directions left out
+  ``cmaes`` default), seeded with ``seed``; it minimises ``-score``. After
+  :data:`RESTART_AFTER` generations without a better robot (or when ``cmaes`` says it has
+  converged) it restarts from the same start with twice the population (IPOP-CMA-ES, Auger and
+  Hansen 2005). The directions left out
   hold the posterior's collapsed latents, where a d-dimensional CMA-ES spends most of its
   budget learning nothing (docs/design.md);
 - ``prior``: random samples of the model's sampling prior, what ``robovae generate`` draws
@@ -57,6 +60,7 @@ one, an ``out`` that is a file or holds a log of another run.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -81,6 +85,8 @@ LOG = "log.json"
 PRIOR_REDRAWS = 4
 #: New CMA-ES candidates asked, at most, in place of one whose decoding did not finish its tree.
 CMA_RESAMPLES = 20
+#: CMA-ES generations without a better robot after which it restarts with twice the population.
+RESTART_AFTER = 10
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 
@@ -159,13 +165,15 @@ class _Run:
         self.origin, self.basis = mean, principal_basis(cov, variance)
         k = self.basis.shape[1]
         self.cma = CMA(mean=np.zeros(k), sigma=1.0, seed=seed, population_size=population)
+        self.restarts, self._best, self._stall = 0, -math.inf, 0
         self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
                          "latent_dim": self.dim, "score_seed": 0,
                          "score_version": SCORE_VERSION, "cma_start": "prior moments",
                          "cma_variance": variance, "cma_dim": k,
                          "cma_population": self.cma.population_size,
                          "unfinished": f"cma resamples {CMA_RESAMPLES}, prior redraws "
-                                       f"{PRIOR_REDRAWS}, then 0"}
+                                       f"{PRIOR_REDRAWS}, then 0",
+                         "cma_restarts": f"IPOP after {RESTART_AFTER} generations"}
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
         self.log = {"settings": self.settings, "budget": budget,
@@ -203,12 +211,31 @@ class _Run:
                                "another --out")
         self.log["evaluations"] = old["evaluations"]  # written back with the new settings
         done = self.log["evaluations"]["cma"]
-        pop = self.cma.population_size
-        for g in range(0, len(done) - len(done) % pop, pop):
+        g = 0
+        while len(done) - g >= self.cma.population_size:
+            pop = self.cma.population_size
             ys, zs, _ = self.ask()
             self._check_replay(zs, done[g:g + pop])
-            self.cma.tell([(y, -r["score"]) for y, r in zip(ys, done[g:g + pop])])
-        self.pending = done[len(done) - len(done) % pop:]  # a generation cut by the budget
+            self._tell(ys, done[g:g + pop])
+            g += pop
+        self.pending = done[g:]  # a generation cut by the budget
+
+    def _tell(self, ys: Sequence[np.ndarray], recs: Sequence[dict]) -> None:
+        """Tell CMA-ES a generation's scores; after :data:`RESTART_AFTER` generations
+        without a better robot since it started, restart it (IPOP-CMA-ES): from the prior's
+        moments again, step size 1, twice the population, seeded by ``(seed, restart)``."""
+        from cmaes import CMA
+
+        self.cma.tell([(y, -r["score"]) for y, r in zip(ys, recs)])
+        best = max(r["score"] for r in recs)
+        self._best, self._stall = (best, 0) if best > self._best else (self._best,
+                                                                        self._stall + 1)
+        if self._stall >= RESTART_AFTER or self.cma.should_stop():
+            self.restarts += 1
+            seed = int(np.random.SeedSequence([self.seed, self.restarts, 3]).generate_state(1)[0])
+            self.cma = CMA(mean=np.zeros(self.basis.shape[1]), sigma=1.0, seed=seed,
+                           population_size=2 * self.cma.population_size)
+            self._best, self._stall = -math.inf, 0
 
     def _check_replay(self, zs: Sequence[np.ndarray], recs: Sequence[dict]) -> None:
         for z, rec in zip(zs, recs):
@@ -283,12 +310,12 @@ class _Run:
             if k in draws:
                 rec["draw"] = draws[k]
             if k in rejected:
-                rec["rejected"] = rejected[k]
+                rec.update(rejected=rejected[k], restart=self.restarts)
             ev[m].append(rec)
         if left["cma"] > 0:
             gen = ev["cma"][start:start + pop]
             if len(gen) == pop:
-                self.cma.tell([(y, -r["score"]) for y, r in zip(ys, gen)])
+                self._tell(ys, gen)
                 self.pending = []
             else:
                 self.pending = gen

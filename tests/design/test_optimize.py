@@ -248,3 +248,23 @@ def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes,
         assert (r.get("error") == UNFINISHED) == unfinished(model, decode(r["z"]))
         assert r.get("error") != UNFINISHED or k == PRIOR_REDRAWS
     assert any(r["draw"] > 0 for r in ev["prior"])
+
+
+def test_cma_es_restarts_with_twice_the_population_and_resumes(trained_nodes, tmp_path,
+                                                               monkeypatch):
+    """IPOP: a CMA-ES that finds nothing better for RESTART_AFTER generations (here 1) starts
+    again with twice the population; a resumed run replays the restarts."""
+    import robovae.design.optimize as opt
+
+    monkeypatch.setattr(opt, "RESTART_AFTER", 1)
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "opt"
+    optimize(ckpt, "reach", 10, out, seed=0, jobs=1, progress=False, population=2)
+    cma = json.loads((out / "log.json").read_text())["evaluations"]["cma"]
+    restarts = [r["restart"] for r in cma]
+    assert restarts == sorted(restarts) and restarts[-1] >= 1
+    sizes = [restarts.count(k) for k in range(restarts[-1])]  # whole generations, doubling
+    assert all(n % (2 * 2 ** k) == 0 for k, n in enumerate(sizes))
+    optimize(ckpt, "reach", 12, out, seed=0, jobs=1, progress=False, population=2)
+    again = json.loads((out / "log.json").read_text())["evaluations"]["cma"]
+    assert again[:10] == cma and len(again) == 12
