@@ -45,10 +45,11 @@ Output folder ``out``:
 
 - ``log.json``: the settings and every evaluation per method (index, score, details, ``z`` or
   procedural seed), rewritten atomically after each round. Re-running with the same ``out``
-  continues from it: CMA-ES is replayed from the logged scores (its candidates are
-  deterministic for the seed; a mismatch is refused), the baselines skip logged indices. A log
-  of other settings (model, task, seed, search space, population) is refused; a larger
-  ``--budget`` extends the run.
+  continues from it: CMA-ES is replayed from the logged scores, resampling and restarts
+  included (its candidates are deterministic for the seed; a mismatch is refused), the
+  baselines skip logged indices. A log of other settings (model, task, seed, score version,
+  search space, population, the rules for unfinished decodings and restarts) is refused; a
+  larger ``--budget`` extends the run.
 - ``best/<method>/rank_<k>/robot.xml`` (+ ``scene.xml``): the ``top`` best robots per method,
   rewritten at the end; ``convergence.png``: best score so far against evaluations.
 
