@@ -75,7 +75,7 @@ from robovae.design.score import SCORE_VERSION, TASKS, score_robot
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.model.checkpoint import load_model
-from robovae.model.prior import unfinished
+from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
 
 __all__ = ["METHODS", "best_so_far", "optimize", "principal_basis", "procedural_seed"]
@@ -181,22 +181,25 @@ class _Run:
                     "evaluations": {m: [] for m in METHODS}}
         self.pending: list[dict] = []  # evaluated part of the CMA-ES generation being asked
 
-    def ask(self) -> tuple[list[np.ndarray], list[np.ndarray], list[int]]:
-        """One CMA-ES generation: its search points ``y``, their latents ``z`` and, per point,
-        how many candidates asked before it in its place decoded to an unfinished tree (each
-        replaced by a new ``cma.ask()``, at most :data:`CMA_RESAMPLES` times: the module
-        docstring). Deterministic for the CMA-ES state (a resumed run replays it)."""
+    def ask(self) -> tuple[list[np.ndarray], list[np.ndarray], list, list[int]]:
+        """One CMA-ES generation: its search points ``y``, their latents ``z``, their decoded
+        graphs and, per point, how many candidates asked before it in its place decoded to an
+        unfinished tree (each replaced by a new ``cma.ask()``, at most :data:`CMA_RESAMPLES`
+        times: the module docstring). Deterministic for the CMA-ES state (a resumed run
+        replays it)."""
         ys = [self.cma.ask() for _ in range(self.cma.population_size)]
+        graphs: list = [None] * len(ys)
         rejected = [0] * len(ys)
         todo = list(range(len(ys)))
         while todo:
-            graphs = self._decode([self.origin + self.basis @ ys[k] for k in todo])
-            todo = [k for k, g in zip(todo, graphs)
-                    if unfinished(self.model, g) and rejected[k] < CMA_RESAMPLES]
+            for k, g in zip(todo, self._decode([self.origin + self.basis @ ys[k] for k in todo])):
+                graphs[k] = g
+            todo = [k for k in todo
+                    if unfinished(self.model, graphs[k]) and rejected[k] < CMA_RESAMPLES]
             for k in todo:
                 ys[k] = self.cma.ask()
                 rejected[k] += 1
-        return ys, [self.origin + self.basis @ y for y in ys], rejected
+        return ys, [self.origin + self.basis @ y for y in ys], graphs, rejected
 
     def load(self) -> None:
         """Continue from ``log.json`` (module docstring); refuses another run's log."""
@@ -215,7 +218,7 @@ class _Run:
         g = 0
         while len(done) - g >= self.cma.population_size:
             pop = self.cma.population_size
-            ys, zs, _ = self.ask()
+            ys, zs, _, _ = self.ask()
             self._check_replay(zs, done[g:g + pop])
             self._tell(ys, done[g:g + pop])
             g += pop
@@ -249,24 +252,6 @@ class _Run:
         z = torch.as_tensor(np.stack(zs), dtype=torch.float64)
         return self.model.decode(z)
 
-    def _redraw_prior(self, jobs: list[tuple[str, int, object]], graphs: dict[int, object]
-                      ) -> dict[int, int]:
-        """Redraw the prior baseline's unfinished decodings as ``robovae generate`` does
-        (:func:`~robovae.model.prior.draw_robots`: draw ``k`` of robot ``i`` from its stream
-        ``(seed, i, 2, k)``, at most :data:`PRIOR_REDRAWS` times); ``jobs`` and ``graphs`` are
-        updated in place. Returns the draw kept per prior job."""
-        draws = {}
-        for k, (m, i, _) in enumerate(jobs):
-            if m != "prior":
-                continue
-            draws[k] = 0
-            while unfinished(self.model, graphs[k]) and draws[k] < PRIOR_REDRAWS:
-                draws[k] += 1
-                z = self.model.prior_latent(self.seed, i, draw=draws[k]).double().numpy()
-                jobs[k] = (m, i, z)
-                graphs[k] = self._decode([z])[0]
-        return draws
-
     def round(self, pool) -> int:
         """One CMA-ES generation plus as many baseline robots; returns evaluations done."""
         ev = self.log["evaluations"]
@@ -274,28 +259,28 @@ class _Run:
         left = {m: self.budget - len(ev[m]) for m in METHODS}
         jobs: list[tuple[str, int, object]] = []
         start = len(ev["cma"]) - len(self.pending)  # index of this generation's first
+        graphs: dict[int, object] = {}  # job -> decoded graph (latent methods)
         rejected: dict[int, int] = {}  # job -> unfinished CMA-ES candidates resampled
+        draws: dict[int, int] = {}  # job -> prior draw kept
         if left["cma"] > 0:
-            ys, zs, asked = self.ask()
+            ys, zs, decoded, asked = self.ask()
             self._check_replay(zs, self.pending)
             for k, z in enumerate(zs):
                 if k >= len(self.pending) and start + k < self.budget:
-                    rejected[len(jobs)] = asked[k]
+                    graphs[len(jobs)], rejected[len(jobs)] = decoded[k], asked[k]
                     jobs.append(("cma", start + k, z))
-        for k in range(min(pop, left["prior"])):
-            i = len(ev["prior"]) + k
-            jobs.append(("prior", i, self.model.prior_latent(self.seed, i).double().numpy()))
+        prior = [len(ev["prior"]) + k for k in range(min(pop, left["prior"]))]
+        if prior:  # unfinished decodings redrawn as robovae generate redraws them
+            zp, gp, dp = draw_robots(self.model, self.seed, prior, redraws=PRIOR_REDRAWS,
+                                     noise=False)
+            for i, z, g, d in zip(prior, zp, gp, dp):
+                graphs[len(jobs)], draws[len(jobs)] = g, d
+                jobs.append(("prior", i, z.numpy()))
         for k in range(min(pop, left["procedural"])):
             i = len(ev["procedural"]) + k
             jobs.append(("procedural", i, procedural_seed(self.seed, i)))
         if not jobs:
             return 0
-        latent_jobs = [k for k, j in enumerate(jobs) if j[0] != "procedural"]
-        graphs: dict[int, object] = {}
-        draws: dict[int, int] = {}
-        if latent_jobs:
-            graphs = dict(zip(latent_jobs, self._decode([jobs[k][2] for k in latent_jobs])))
-            draws = self._redraw_prior(jobs, graphs)
         work = self.out / ".work"
         items = [(m, graphs.get(k, p), str(work / f"{m}_{i:06d}"), self.model.feature_set.name,
                   self.task, self.floating) for k, (m, i, p) in enumerate(jobs)]

@@ -70,19 +70,22 @@ def unfinished(model: PriorModel, graph: RobotData) -> bool:
 
 
 def draw_robots(model: PriorModel, seed: int, indices: Sequence[int], temperature: float = 1.0,
-                node_temperature: float | None = None, redraws: int = 0,
+                node_temperature: float | None = None, redraws: int = 0, noise: bool = True,
                 ) -> tuple[torch.Tensor, list[RobotData], list[int]]:
     """Decode robots ``indices`` of a run with ``seed`` from the prior (module docstring).
 
     ``temperature`` scales ``z``, ``node_temperature`` (default: ``temperature``) the node
-    latents' noise. Returns ``(z, graphs, draws)``: the latents decoded ``[B, latent_dim]``, the
-    graphs, and per robot the draw that was kept (0: the first; ``k``: after ``k`` redraws of an
-    unfinished tree, at most ``redraws``; the last draw is kept even if unfinished).
+    latents' noise; ``noise=False`` decodes every node latent at its conditional prior mean
+    instead (decoding from ``z`` alone, as :mod:`robovae.design.optimize` does). Returns
+    ``(z, graphs, draws)``: the latents decoded ``[B, latent_dim]``, the graphs, and per robot
+    the draw that was kept (0: the first; ``k``: after ``k`` redraws of an unfinished tree, at
+    most ``redraws``; the last draw is kept even if unfinished).
     """
-    z, noise = model.sample_prior(seed, indices, temperature)
+    z, eps = model.sample_prior(seed, indices, temperature)
     if node_temperature is not None:
-        noise = model.sample_prior(seed, indices, node_temperature)[1]
-    graphs = model.decode(z, node_noise=noise)
+        eps = model.sample_prior(seed, indices, node_temperature)[1]
+    eps = eps if noise else None
+    graphs = model.decode(z, node_noise=eps)
     draws = [0] * len(graphs)
     todo = [b for b, g in enumerate(graphs) if unfinished(model, g)]
     for k in range(1, redraws + 1):
@@ -90,7 +93,7 @@ def draw_robots(model: PriorModel, seed: int, indices: Sequence[int], temperatur
             break
         zk = torch.stack([model.prior_latent(seed, int(indices[b]), temperature, draw=k)
                           for b in todo]).to(z)
-        again = model.decode(zk, node_noise=noise[todo])
+        again = model.decode(zk, node_noise=None if eps is None else eps[todo])
         for b, zb, g in zip(todo, zk, again):
             z[b], graphs[b], draws[b] = zb, g, k
         todo = [b for b in todo if unfinished(model, graphs[b])]

@@ -144,7 +144,7 @@ def test_optimize_starts_cma_with_the_prior_moments(mixture_model, tmp_path):
     run = _Run(model, "walk", 4, tmp_path, seed=0, jobs=1, top=1, variance=1.0)
     assert np.allclose(run.origin, mean) and np.allclose(run.basis @ run.basis.T, cov)
     assert np.allclose(run.cma.mean, 0) and run.settings["cma_start"] == "prior moments"
-    ys, zs, _ = run.ask()
+    ys, zs, _, _ = run.ask()
     assert np.allclose(zs[1], mean + run.basis @ ys[1])
     model.hparams.prior = "standard"
     try:
