@@ -6,8 +6,8 @@ file is loaded with :func:`robovae.data.mjcf.load_robot` (Menagerie files withou
 load) and turned into a scene with ``mujoco.MjSpec`` edits, never XML strings:
 
 - **floor**: when the model has no floor (a world plane or height field), a checkered plane is
-  added (:func:`robovae.evaluate.scene.add_floor`) at the robot's lowest point at ``qpos0``;
-  a light is added when the model has none.
+  added (:func:`robovae.evaluate.scene.add_floor`) at the robot's lowest point in its initial
+  pose (below); a light is added when the model has none.
 - **root**: the robot is the top-level body with the largest subtree
   (:func:`robovae.data.mjcf.robot_root`). A root body **without any joint** (welded to the world,
   e.g. an arm) gets a free joint when ``free_base`` (default): it then falls onto the floor and
@@ -21,6 +21,11 @@ load) and turned into a scene with ``mujoco.MjSpec`` edits, never XML strings:
   body and the world (:func:`~robovae.evaluate.quality.locomotion.actuated_base`: a gantry that
   carries the root, not legs): ``robovae: <file>: a motor moves its root body relative to the
   world (actuated base), nothing to walk with (actuator)``.
+
+**Initial pose**: the robot's rest pose (:func:`robovae.evaluate.quality.stage.rest_pose`: its
+``home`` keyframe when it has one, as a generated robot's balanced stance,
+:mod:`robovae.generate.stance`; else ``qpos0``; joints clipped into their ranges), at rest;
+``reset`` adds noise to it.
 
 **Actions** lie in ``[-1, 1]^nu`` (``float32``) and are scaled to each actuator's control range
 ``[lo, hi]``: ``ctrl = lo + (a + 1) (hi - lo) / 2``; an actuator without ``ctrlrange``
@@ -47,7 +52,7 @@ normalised action (so the cost does not depend on the actuators' ranges or count
 
 **Health**: the robot is healthy when the state is finite, MuJoCo raised no instability warning
 during the step, the root height above the floor is at least ``min_height_ratio`` times its
-height at ``qpos0``, and the root's up axis (the local direction that points up at ``qpos0``) is
+height in the initial pose, and the root's up axis (the local direction that points up in it) is
 within ``max_tilt`` degrees of vertical. With ``terminate_when_unhealthy`` an unhealthy step
 ends the episode (``terminated``); the registered env truncates after 1000 steps.
 
@@ -75,6 +80,7 @@ from robovae.data.mjcf import robot_root
 from robovae.errors import RobovaeError
 from robovae.evaluate.camera import robot_bounds
 from robovae.evaluate.quality.locomotion import actuated_base
+from robovae.evaluate.quality.stage import rest_pose
 from robovae.evaluate.scene import add_floor, has_floor
 
 __all__ = ["ROOT_DIM", "Layout", "WalkEnv", "walk_scene"]
@@ -162,6 +168,7 @@ def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco
         _root_body(spec, root).add_freejoint()
         model = _compile(spec)
     data = mujoco.MjData(model)
+    data.qpos[:] = rest_pose(model)
     quiet_forward(model, data)
     lo, hi = robot_bounds(model, data)
     floor = has_floor(model)
@@ -200,7 +207,7 @@ class WalkEnv(MujocoEnv):
         forward_reward_weight: weight of the heading-frame forward velocity (per m/s).
         healthy_reward: reward per healthy step.
         ctrl_cost_weight: weight of the mean squared normalised action.
-        min_height_ratio: healthy root height, as a fraction of its height at ``qpos0``.
+        min_height_ratio: healthy root height, as a fraction of its height in the initial pose.
         max_tilt: healthy tilt of the root's up axis from vertical (degrees).
         terminate_when_unhealthy: end the episode at the first unhealthy step.
         reset_noise_scale: half-width of the uniform noise added to joint positions, and std of
@@ -250,6 +257,8 @@ class WalkEnv(MujocoEnv):
         unlimited = model.actuator_ctrllimited == 0
         lo[unlimited], hi[unlimited] = -1.0, 1.0
         self._ctrl_lo, self._ctrl_hi = lo, hi
+        self.init_qpos = rest_pose(self.model)
+        self.data.qpos[:] = self.init_qpos
         mujoco.mj_forward(self.model, self.data)
         root = self.scene.root
         self._init_height = float(self.data.xpos[root, 2]) - self.scene.floor_z

@@ -10,7 +10,10 @@ straight into the render scene instead (:func:`inject_floor`; no physics: :func:
 floor, from the file or a spec), from a copy when its buffer or lighting must change. Bodies
 without any geom get a small marker and a "bone" to their parent (:func:`inject_skeleton`), and
 when most bodies' visible geoms are gone (meshes dropped) the collision geom groups are shown as
-well (:func:`scene_option`). Models that have a floor are rendered as they are.
+well (:func:`scene_option`). Models that have a floor are rendered as they are. A robot is shown
+in its rest pose: its keyframe named in :data:`~robovae.evaluate.quality.stage.REST_KEYFRAMES`
+(``home``: a generated robot's balanced stance, :mod:`robovae.generate.stance`) when it has one,
+else ``qpos0``.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import numpy as np
 
 from robovae.data.loading import capture_mujoco_warnings, load_robot
 from robovae.evaluate.camera import robot_bounds
+from robovae.evaluate.quality.stage import REST_KEYFRAMES
 
 __all__ = ["Prepared", "Robot", "add_floor", "has_floor", "inject_floor", "inject_skeleton",
            "model_name", "prepare", "scene_option", "settle"]
@@ -126,8 +130,7 @@ def _bare_model(model: mujoco.MjModel, width: int, height: int,
         if dark:
             model.vis.headlight.ambient = [0.35, 0.35, 0.35]
             model.vis.headlight.diffuse = [0.65, 0.65, 0.65]
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    data = _at_rest(model)
     return Prepared(model, data, model_name(model), inject_floor=inject)
 
 
@@ -157,13 +160,24 @@ def prepare(robot: Robot, width: int, height: int, floor: bool = True) -> Prepar
     add_floor(spec, light=True, skybox=not any(t.type == mujoco.mjtTexture.mjTEXTURE_SKYBOX
                                                for t in spec.textures))
     model = _compile(spec)
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    data = _at_rest(model)
     prep = Prepared(model, data, name)
     prep.floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{_PREFIX}floor")
     prep.light = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_LIGHT, f"{_PREFIX}sun")
     _place_floor(prep)
     return prep
+
+
+def _at_rest(model: mujoco.MjModel) -> mujoco.MjData:
+    """Data at the robot's rest keyframe (``qpos0`` without one), after ``mj_forward``."""
+    data = mujoco.MjData(model)
+    for name in REST_KEYFRAMES:
+        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name)
+        if k >= 0:
+            mujoco.mj_resetDataKeyframe(model, data, k)
+            break
+    mujoco.mj_forward(model, data)
+    return data
 
 
 def _nice(x: float) -> float:

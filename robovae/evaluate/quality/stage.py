@@ -3,8 +3,9 @@ height and size.
 
 :func:`stage` accepts a robot file, a ``mujoco.MjSpec`` or a compiled ``mujoco.MjModel``:
 
-- a file or spec gets a floor (a plane at the robot's lowest point at ``qpos0``) when it has
-  none (:func:`prepare`, which also returns the spec with the floor);
+- a file or spec gets a floor (a plane at the robot's lowest point at ``qpos0``, or in its rest
+  keyframe when it has one: :func:`rest_pose`) when it has none (:func:`prepare`, which also
+  returns the spec with the floor);
 - a model is used as it is: it must already have a floor (an upward world plane or height
   field), else :class:`~robovae.errors.RobovaeError` is raised;
 - a :class:`Stage` is used as it is (its model copied when an integrator is asked for).
@@ -134,9 +135,16 @@ def _stage_of(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> Stage
         data = mujoco.MjData(model)
     else:
         mujoco.mj_resetData(model, data)
-    quiet_forward(model, data)
     root, _ = robot_root(model)
-    pts = robot_points(model, data, root)
+    key = _rest_key(model)
+    if key >= 0:  # floor and size where the robot starts: its rest keyframe
+        data.qpos[:] = model.key_qpos[key]
+        quiet_forward(model, data)
+        pts = robot_points(model, data, root)
+        mujoco.mj_resetData(model, data)
+    quiet_forward(model, data)
+    if key < 0:
+        pts = robot_points(model, data, root)
     floor_z = _floor_height(model, data, float(pts[:, 2].min()))
     size = max(float(np.linalg.norm(pts.max(0) - pts.min(0))), 1e-6)  # extent()
     free = bool(model.body_jntnum[root] >= 1 and model.jnt_type[model.body_jntadr[root]] == FREE)
@@ -160,6 +168,9 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
         spec, model = loaded.spec, loaded.model
     if not _has_floor(model):
         data = mujoco.MjData(model)
+        key = _rest_key(model)
+        if key >= 0:
+            data.qpos[:] = model.key_qpos[key]
         quiet_forward(model, data)
         lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
         spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
@@ -204,9 +215,10 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
     :func:`robovae.generate.validate.check_robot`), without loading it again.
 
     ``floor``: the plane added to a robot that had no floor, at any height. It is moved to the
-    robot's lowest point at ``qpos0``, where :func:`prepare` adds it, and the spec compiled
-    once more (``spec`` is changed; ``model`` is not). ``None``: the floor is the robot's own
-    and ``model`` is staged as it is (a copy). When other world geoms sit beside the added
+    robot's lowest point at ``qpos0`` (or its rest keyframe), where :func:`prepare` adds it,
+    and the spec compiled once more (``spec`` is changed; ``model`` is not). ``None``: the
+    floor is the robot's own and ``model`` is staged as it is (a copy). When other world geoms
+    sit beside the added
     plane (a height field: :func:`prepare` would add no floor), the plane is deleted and the
     spec prepared from scratch. ``data``: ``model``'s data at ``qpos0`` (made when None).
     """
@@ -215,8 +227,11 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
     if np.count_nonzero(model.geom_bodyid == 0) != 1:
         spec.delete(floor)
         return prepare(spec)[1]
-    if data is None:
-        data = mujoco.MjData(model)
+    key = _rest_key(model)
+    if data is None or key >= 0:
+        data = mujoco.MjData(model) if data is None else data
+        if key >= 0:  # where prepare puts the floor: under the rest keyframe
+            data.qpos[:] = model.key_qpos[key]
         mujoco.mj_kinematics(model, data)
     lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
     floor.pos = [0.0, 0.0, lowest]
@@ -225,16 +240,21 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
         return _stage_of(spec.compile(), data)
 
 
+def _rest_key(model: mujoco.MjModel) -> int:
+    """Id of the robot's keyframe named in :data:`REST_KEYFRAMES` (the first found), else -1."""
+    for name in REST_KEYFRAMES:
+        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name)
+        if k >= 0:
+            return k
+    return -1
+
+
 def rest_pose(model: mujoco.MjModel) -> np.ndarray:
     """The robot's rest ``qpos``: its keyframe named in :data:`REST_KEYFRAMES` when it has one
     (real robots' ``qpos0`` is often outside their joint ranges: Go2's knees), else
     ``qpos0``; hinge and slide positions clipped into their joint ranges."""
-    q = model.qpos0.copy()
-    for name in REST_KEYFRAMES:
-        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name)
-        if k >= 0:
-            q = model.key_qpos[k].copy()
-            break
+    k = _rest_key(model)
+    q = model.key_qpos[k].copy() if k >= 0 else model.qpos0.copy()
     for j in range(model.njnt):
         if model.jnt_type[j] in MOVING and model.jnt_limited[j]:
             a = model.jnt_qposadr[j]
