@@ -16,8 +16,9 @@ the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT
    ``a <= 1.2 e``, else the box itself, rotated by ``q``; its thickness is that radius, or
    ``e`` for a box. A capsule of a non-root link with a child link runs from the link's anchor
    to its first child's anchor instead (a limb segment joins its two joints whatever the
-   decoded box's orientation says). A foot keeps its sole and a head
-   its volume, where ``link.size`` alone holds only the first geom.
+   decoded box's orientation says); a leaf link (no child link: a foot, a hand, a head) keeps
+   its box, whatever its proportions. A foot keeps its sole and a head its volume, where
+   ``link.size`` alone holds only the first geom.
 
    - root link (no link above it): at its origin, unrotated;
    - capsule / box: its axis (capsule axis, box z) points from ``a`` at the first child's
@@ -152,10 +153,17 @@ def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> Ge
     return GeomPlan("box", np.maximum(half, 1e-4), center.copy(), q)
 
 
+def _box_geom(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> GeomPlan:
+    """The collision box itself as a geom."""
+    return GeomPlan("box", np.maximum(half, 1e-4), center.copy(), quat / (norm(quat) or 1.0))
+
+
 def _primitive(f: LinkFrame, fill: GeomPlan | None) -> GeomPlan:
     """The link's first geom; ``fill``: :func:`_box_fill` of its box."""
     if fill is not None:
         prim = fill
+        if prim.type == "capsule" and not f.root and not f.children:  # a sole stays flat
+            return _box_geom(*f.box)
         if prim.type == "capsule" and not f.root and f.children:  # a limb segment: joined
             u = f.children[0][0] - f.anchor
             length = float(np.linalg.norm(u))
