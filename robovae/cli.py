@@ -72,7 +72,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
                       overwrite=args.overwrite, floating=args.floating_base,
                       mirror=args.mirror_limbs, node_temperature=args.node_temperature,
                       quality=args.quality, controls=args.validation, redraws=args.redraws,
-                      prior=args.prior)
+                      prior=args.prior, stance=args.stance)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -173,6 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--mirror-limbs", action=argparse.BooleanOptionalAction, default=True,
                    help="near-mirror limb pairs on the trunk become exact mirror images, and a "
                         "stray limb beside them gets its mirror image")
+    g.add_argument("--stance", action=argparse.BooleanOptionalAction, default=True,
+                   help="a free-floating robot's soles are laid flat, and a robot on two feet "
+                   "gets a home keyframe with its centre of mass over them (level_soles, "
+                   "balance_home)")
     g.add_argument("--quality", action=argparse.BooleanOptionalAction, default=True,
                    help="measure every valid robot: attached, symmetric, standing (the "
                    "standing test continues the validation's held second)")

@@ -201,6 +201,7 @@ def generate(
     controls: str = "held",
     redraws: int = 4,
     prior: str | None = None,
+    stance: bool = True,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -223,6 +224,9 @@ def generate(
     (:func:`~robovae.model.prior.draw_robots`; rule ``redraw_unfinished``, ``draw`` in the
     record). ``prior``: ``mixture`` or ``standard`` (:data:`~robovae.model.vae.PRIORS`;
     default: the checkpoint's ``prior``); the prior actually used is recorded in ``run.json``.
+    ``stance``: a free-floating robot's soles are laid flat and a two-footed robot gets a
+    balanced ``home`` keyframe (:mod:`robovae.generate.stance`; rules ``level_soles``,
+    ``balance_home``).
     """
     if prior is not None and prior not in PRIORS:
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")
@@ -239,7 +243,7 @@ def generate(
     run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
            "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
            "node_temperature": node_temperature, "redraws": redraws,
-           "prior": prior_name(model)}
+           "prior": prior_name(model), "stance": stance}
     if validate and controls != "zero":  # folders validated with zero controls resume as before
         run["validation"] = controls
     claim(out, run, overwrite)
@@ -255,7 +259,8 @@ def generate(
     jobs = jobs or (os.cpu_count() or 1)
     threads = torch.get_num_threads()
     opts = {"seed": seed, "temperature": temperature, "validate": validate, "scene": scene,
-            "floating": floating, "mirror": mirror, "quality": quality, "controls": controls}
+            "floating": floating, "mirror": mirror, "quality": quality, "controls": controls,
+            "stance": stance}
     try:
         if jobs > 1:
             torch.set_num_threads(1)  # the workers have the other cores
@@ -298,11 +303,12 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                     temperature: float = 1.0, validate: bool = True, scene: bool = True,
                     floating: bool = True, mirror: bool = True, quality: bool = True,
                     controls: str = "held", draws: Sequence[int] | None = None,
-                    ) -> tuple[list[dict], list[tuple]]:
+                    stance: bool = True) -> tuple[list[dict], list[tuple]]:
     """The first half of :func:`write_records`, in this process: each decoded robot's graph
     given a floating base and mirrored limbs (as asked), its manifest record so far and the
     work item of :func:`~robovae.generate.build.build_robot` (write, validate, measure).
-    ``draws``: per robot, the prior draw kept (:func:`~robovae.model.prior.draw_robots`)."""
+    ``draws``: per robot, the prior draw kept (:func:`~robovae.model.prior.draw_robots`).
+    ``stance``: the writer's stance rules (:mod:`robovae.generate.stance`)."""
     records, items = [], []
     fs = model.feature_set
     draws = [0] * len(graphs) if draws is None else draws
@@ -323,7 +329,7 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                    path=f"robot_{i:06d}/robot.xml")
         records.append(rec)
         items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality,
-                      controls))
+                      controls, stance))
     return records, items
 
 
@@ -342,7 +348,7 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   scene: bool = True, floating: bool = True,
                   pool: Executor | None = None, mirror: bool = True,
                   quality: bool = True, controls: str = "held",
-                  draws: Sequence[int] | None = None) -> list[dict]:
+                  draws: Sequence[int] | None = None, stance: bool = True) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
     validate them. Returns one manifest record per robot (the caller appends them).
 
@@ -353,12 +359,13 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     (:func:`~robovae.generate.symmetry.mirror_limbs`, :func:`~robovae.generate.symmetry.
     complete_pairs`, listed as ``mirror_limbs``, ``complete_pairs``); with ``quality`` (and
     ``validate``), every valid robot's quality measures go into its record under ``quality``;
-    ``controls``: the validation's simulation (:mod:`robovae.generate.validate`).
+    ``controls``: the validation's simulation (:mod:`robovae.generate.validate`); ``stance``:
+    the writer's stance rules (:mod:`robovae.generate.stance`).
     """
     records, items = prepare_records(model, indices, z, graphs, out, seed=seed,
                                      temperature=temperature, validate=validate, scene=scene,
                                      floating=floating, mirror=mirror, quality=quality,
-                                     controls=controls, draws=draws)
+                                     controls=controls, draws=draws, stance=stance)
     jobs = jobs or (os.cpu_count() or 1)
     if pool is not None:
         built = list(pool.map(build_robot, items, chunksize=4))

@@ -96,7 +96,7 @@ class RobotWriter(BasePredictionWriter):
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
                "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
                "node_temperature": None, "redraws": int(hp.predict_redraws),
-               "prior": prior_name(pl_module)}
+               "prior": prior_name(pl_module), "stance": True}
         refused = None
         if trainer.is_global_zero:
             try:

@@ -44,10 +44,12 @@ import numpy as np
 from robovae.data.features import FeatureSet
 from robovae.data.graph import RobotData
 from robovae.data.loading import capture_mujoco_warnings
+from robovae.data.mjcf import robot_root
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
+from robovae.generate.stance import balance_home, level_soles
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
 
@@ -111,10 +113,10 @@ def _lowest_point(model: mujoco.MjModel) -> float:
 
 
 def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: ActuatorMode,
-           clearance: float | None, self_collision: bool
+           clearance: float | None, self_collision: bool, stance: bool = False
            ) -> tuple[mujoco.MjSpec, mujoco.MjModel, list[str]]:
-    """The spec (floor placement applied), a model compiled before the placement (its counts
-    are right, its root height is not) and the fired rules."""
+    """The spec (stance rules and floor placement applied), a model compiled before the
+    placement (its counts are right, its root height is not) and the fired rules."""
     if actuators not in ("auto", "all", "none"):
         raise ValueError(f"actuators must be 'auto', 'all' or 'none', not {actuators!r}")
     fired: list[str] = []
@@ -124,10 +126,17 @@ def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: A
     spec = builder.build()
     fired += builder.fixes
     model = _compile(spec)
+    stance = stance and bool(builder.free_bodies) and model.ngeom > 0
+    if stance and level_soles(spec, model):
+        fired.append("level_soles")
+        model = _compile(spec)
+    dz = 0.0
     if clearance is not None and builder.free_bodies and model.ngeom:
         dz = clearance - _lowest_point(model)
         for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]
+    if stance and balance_home(spec, model, robot_root(model)[0], lift=dz):
+        fired.append("balance_home")
     return spec, model, fired
 
 
@@ -140,6 +149,7 @@ def graph_to_spec(
     actuators: ActuatorMode = "auto",
     clearance: float | None = DEFAULT_CLEARANCE,
     self_collision: bool = False,
+    stance: bool = False,
 ) -> tuple[mujoco.MjSpec, list[str]]:
     """Build the ``mujoco.MjSpec`` of a robot graph (mapping: :mod:`robovae.generate.spec_builder`;
     floor placement: module docstring).
@@ -154,6 +164,9 @@ def graph_to_spec(
         clearance: lift free-floating robots so their lowest point is this high above
             ``z = 0``; ``None`` keeps the root link's position.
         self_collision: let the robot's geoms collide with each other (``conaffinity = 1``).
+        stance: a free-floating robot gets its soles laid flat and, standing on two feet, a
+            balanced ``home`` keyframe (:mod:`robovae.generate.stance`: ``level_soles``,
+            ``balance_home``).
 
     Returns:
         The spec (already compiled once, so ``spec.to_xml()`` works) and the names of the rules
@@ -163,7 +176,7 @@ def graph_to_spec(
         ValueError: when MuJoCo rejects the model (only possible with ``rules=False``).
     """
     fs = as_feature_set(feature_set)
-    spec, _, fired = _build(data, fs, name, rules, actuators, clearance, self_collision)
+    spec, _, fired = _build(data, fs, name, rules, actuators, clearance, self_collision, stance)
     return spec, fired
 
 
@@ -232,6 +245,7 @@ def write_robot(
     actuators: ActuatorMode = "auto",
     clearance: float | None = DEFAULT_CLEARANCE,
     self_collision: bool = False,
+    stance: bool = False,
     check: bool = True,
     durable: bool = True,
 ) -> WriteResult:
@@ -251,6 +265,7 @@ def write_robot(
         actuators: as in :func:`graph_to_spec`.
         clearance: as in :func:`graph_to_spec`.
         self_collision: as in :func:`graph_to_spec`.
+        stance: as in :func:`graph_to_spec`.
         out_dir: folder to write into (created if missing).
         scene: also write ``scene.xml`` (floor, light, ``<include file="robot.xml"/>``).
         check: load the XML with MuJoCo before writing.
@@ -260,7 +275,8 @@ def write_robot(
         ValueError: when MuJoCo rejects the model (only possible with ``rules=False``).
     """
     fs = as_feature_set(feature_set)
-    spec, model, fired = _build(data, fs, name, rules, actuators, clearance, self_collision)
+    spec, model, fired = _build(data, fs, name, rules, actuators, clearance, self_collision,
+                                stance)
     with capture_mujoco_warnings():  # to_xml compiles the spec again (MuJoCo's bindings)
         xml = spec.to_xml()
     if check:

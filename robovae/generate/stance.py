@@ -1,0 +1,268 @@
+"""Stance: a free-floating robot written with its soles flat on the floor and, when it stands
+on two feet, its centre of mass over them at rest.
+
+Two named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
+placement (:func:`robovae.generate.writer.graph_to_spec` with ``stance=True``; ``robovae
+generate`` asks for them, ``--no-stance`` does not). Each is reported per robot when it changes
+something. Both look at the robot's geometry at rest only, never at a simulation.
+
+**Support.** The robot's extent ``L`` is the diagonal of the box around its geoms' bounding
+boxes at rest; its *support points* are the lowest points of its geoms (a box's corners, the
+bottoms of a capsule's end spheres, a sphere's bottom, else the corners of the geom's bounding
+box) that lie within :data:`SUPPORT_TOL` ``· L`` of the lowest of them: where the robot meets
+the floor once it has settled a little.
+
+``level_soles``
+    A decoded collision box is a few degrees off, and a foot that meets the floor on an edge
+    or a corner gives no support: a biped on two edges tips over at once. A *sole* is a box
+    geom of a leaf link (a body without child bodies) whose lowest corner lies within
+    :data:`SOLE_TOL` ``· L`` of the robot's lowest point and whose axis nearest to vertical is
+    not its longest (a foot lying on the floor, not a shin standing on its end). A sole tilted
+    by ``0 < α ≤`` :data:`MAX_SOLE_TILT` from lying on one of its faces is turned about its
+    centre by the smallest rotation that makes that face horizontal (``R' = R_α R``, ``R_α``
+    the rotation taking the box axis nearest to vertical onto ``+z``); its size and centre are
+    kept.
+
+``balance_home``
+    A robot whose support points belong to exactly two limbs of the root body (two legs), each
+    with a hinge at or above its foot whose axis lies within 45° of the *lateral* axis (from
+    one foot's support points to the other's), gets a ``home`` keyframe in which its centre of
+    mass lies over the middle of its soles: the *ankle strategy*. Both ankles turn by ``θ``
+    (each signed by its axis' direction along the lateral axis) and the whole robot turns
+    back about the first foot, so that the feet keep their place on the floor and the body
+    leans over them; ``θ`` is found by bisection in ``[-MAX_ANKLE, MAX_ANKLE]`` (and the
+    ankles' joint ranges) so that the centre of mass projects, along the sagittal axis (the
+    horizontal normal of the lateral one), onto the middle ``m`` of the support points'
+    sagittal extent ``[s_lo, s_hi]``. It fires only when, at ``qpos0``, the centre of mass lies
+    outside the middle :data:`BALANCED` share of that extent (``|s_com - m| > BALANCED ·
+    (s_hi - s_lo) / 2``) and a ``θ`` that centres it exists; the keyframe's lowest point is
+    kept at ``qpos0``'s. A robot that already has a ``home`` keyframe is left alone.
+
+The quality measures and ``robovae/Walk-v0`` start a robot at its ``home`` keyframe
+(:func:`robovae.evaluate.quality.stage.rest_pose`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from robovae.generate.mjcf_numbers import mjcf_round_vector
+
+__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "SOLE_TOL", "SUPPORT_TOL", "balance_home",
+           "level_soles", "support_points"]
+
+#: A sole's lowest corner lies within this share of the robot's extent of its lowest point.
+SOLE_TOL = 0.02
+#: Largest tilt (degrees) of a sole that ``level_soles`` lays flat.
+MAX_SOLE_TILT = 30.0
+#: Support points lie within this share of the robot's extent of its lowest point.
+SUPPORT_TOL = 0.03
+#: ``balance_home`` leaves a centre of mass inside this middle share of the soles' extent.
+BALANCED = 0.5
+#: Largest ankle turn (rad) of ``balance_home``.
+MAX_ANKLE = 0.6
+#: A hinge is an ankle when its axis is within 45° of the lateral axis.
+_ANKLE_COS = math.cos(math.radians(45.0))
+_BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
+_CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
+_SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
+_HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+_SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+
+
+def _points(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    """Every geom's candidate lowest points (world frame, module docstring) and their geoms."""
+    pts, owner = [], []
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == 0:
+            continue
+        rot, pos, size = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g], model.geom_size[g]
+        t = model.geom_type[g]
+        if t == _BOX:
+            p = pos + (_SIGNS * size) @ rot.T
+        elif t == _CAPSULE:
+            ends = pos + np.outer([-size[1], size[1]], rot[:, 2])
+            p = ends - [0.0, 0.0, size[0]]
+        elif t == _SPHERE:
+            p = (pos - [0.0, 0.0, size[0]])[None]
+        else:
+            box = model.geom_aabb[g]
+            p = pos + (box[:3] + _SIGNS * box[3:]) @ rot.T
+        pts.append(p)
+        owner += [g] * len(p)
+    if not pts:
+        return np.zeros((0, 3)), np.zeros(0, dtype=int)
+    return np.concatenate(pts), np.array(owner)
+
+
+def _extent(points: np.ndarray) -> float:
+    return max(float(np.linalg.norm(points.max(0) - points.min(0))), 1e-9) if len(points) else 0.0
+
+
+def support_points(model: mujoco.MjModel, data: mujoco.MjData, tol: float = SUPPORT_TOL
+                   ) -> tuple[np.ndarray, np.ndarray, float]:
+    """The support points at ``data``'s pose (kinematics done), their geoms and the robot's
+    extent (module docstring); ``tol``: share of the extent above the lowest point."""
+    pts, owner = _points(model, data)
+    if not len(pts):
+        return pts, owner, 0.0
+    ext = _extent(pts)
+    low = pts[:, 2] <= pts[:, 2].min() + tol * ext
+    return pts[low], owner[low], ext
+
+
+def _leaves(model: mujoco.MjModel) -> set[int]:
+    parents = set(model.body_parentid[1:].tolist())
+    return {b for b in range(1, model.nbody) if b not in parents}
+
+
+def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel) -> bool:
+    """Lay the robot's soles flat (``level_soles``, module docstring): changes the quaternions
+    of the sole geoms of ``spec`` (``model``: ``spec`` compiled, at ``qpos0``). Returns whether a
+    sole was turned (``spec`` then needs compiling again)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    pts, owner = _points(model, data)
+    if not len(pts):
+        return False
+    low, ext = float(pts[:, 2].min()), _extent(pts)
+    leaves = _leaves(model)
+    turned = False
+    for g in np.unique(owner[pts[:, 2] <= low + SOLE_TOL * ext]).tolist():
+        body = int(model.geom_bodyid[g])
+        name = model.geom(g).name
+        if model.geom_type[g] != _BOX or body not in leaves or not name:
+            continue
+        rot = data.geom_xmat[g].reshape(3, 3)
+        k = int(np.argmax(np.abs(rot[2])))
+        if model.geom_size[g, k] >= model.geom_size[g].max():  # a leg standing on its end
+            continue
+        up = rot[:, k] * np.sign(rot[2, k])
+        tilt = math.degrees(math.acos(min(1.0, float(up[2]))))
+        if tilt <= 1e-3 or tilt > MAX_SOLE_TILT:
+            continue
+        q_turn, q_world, q_body, q_local = (np.zeros(4) for _ in range(4))
+        mujoco.mju_quatZ2Vec(q_turn, up)  # the rotation taking +z onto `up`; its inverse levels
+        mujoco.mju_negQuat(q_turn, q_turn)
+        mujoco.mju_mat2Quat(q_world, rot.reshape(9))
+        mujoco.mju_mulQuat(q_world, q_turn, q_world)
+        mujoco.mju_negQuat(q_body, data.xquat[body])
+        mujoco.mju_mulQuat(q_local, q_body, q_world)
+        spec.geom(name).quat = mjcf_round_vector(q_local)
+        turned = True
+    return turned
+
+
+def _limb(model: mujoco.MjModel, body: int, root: int) -> int:
+    """The child of ``root`` whose subtree holds ``body`` (``root`` for the root itself)."""
+    while body != root and model.body_parentid[body] != root and body != 0:
+        body = int(model.body_parentid[body])
+    return body
+
+
+def _depth(model: mujoco.MjModel, body: int) -> int:
+    k = 0
+    while body:
+        body, k = int(model.body_parentid[body]), k + 1
+    return k
+
+
+def _ankle(model: mujoco.MjModel, data: mujoco.MjData, foot: int, root: int,
+           lateral: np.ndarray) -> int | None:
+    """The first hinge at or above ``foot`` (below ``root``) whose axis lies within 45° of
+    ``lateral``."""
+    body = foot
+    while body not in (root, 0):
+        first = model.body_jntadr[body]
+        for j in range(first, first + model.body_jntnum[body]):
+            if model.jnt_type[j] == _HINGE and abs(float(data.xaxis[j] @ lateral)) >= _ANKLE_COS:
+                return j
+        body = int(model.body_parentid[body])
+    return None
+
+
+def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: float = 0.0
+                 ) -> bool:
+    """Add the ``home`` keyframe of the ankle strategy to ``spec`` (``balance_home``, module
+    docstring; ``model``: ``spec`` compiled, ``root``: the free-floating root body). ``lift``:
+    added to the root's height in the keyframe (the floor placement's shift of the root, which
+    ``model`` does not have yet). Returns whether a keyframe was added."""
+    if any(k.name == "home" for k in spec.keys) or model.body_jntnum[root] < 1:
+        return False
+    free = int(model.body_jntadr[root])
+    if model.jnt_type[free] != _FREE:
+        return False
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    pts, owner, _ = support_points(model, data)
+    limbs = np.array([_limb(model, int(model.geom_bodyid[g]), root) for g in owner])
+    legs = sorted(set(limbs.tolist()))
+    if len(legs) != 2 or root in legs:
+        return False
+    centres = [pts[limbs == leg, :2].mean(0) for leg in legs]
+    lateral = np.array([*(centres[1] - centres[0]), 0.0])
+    if np.linalg.norm(lateral) < 1e-9:
+        return False
+    lateral /= np.linalg.norm(lateral)
+    sagittal = np.array([-lateral[1], lateral[0], 0.0])
+    s = pts @ sagittal
+    mid, half = 0.5 * (s.max() + s.min()), 0.5 * (s.max() - s.min())
+    ankles, feet = [], []
+    for leg in legs:
+        on_leg = [int(model.geom_bodyid[g]) for g in owner[limbs == leg]]
+        foot = max(on_leg, key=lambda b: (_depth(model, b), b))
+        j = _ankle(model, data, foot, root, lateral)
+        if j is None:
+            return False
+        ankles.append((int(model.jnt_qposadr[j]), float(np.sign(data.xaxis[j] @ lateral)), j))
+        feet.append(foot)
+    lo, hi = -MAX_ANKLE, MAX_ANKLE
+    for adr, sign, j in ankles:  # keep every ankle inside its range
+        if model.jnt_limited[j]:
+            a, b = sorted(((model.jnt_range[j] - model.qpos0[adr]) / sign).tolist())
+            lo, hi = max(lo, a), min(hi, b)
+    qadr = int(model.jnt_qposadr[free])
+    q0 = model.qpos0.copy()
+    foot = feet[0]
+    foot_pos, foot_rot = data.xpos[foot].copy(), data.xmat[foot].reshape(3, 3).copy()
+    low0 = float(_points(model, data)[0][:, 2].min())
+
+    def pose(theta: float) -> tuple[np.ndarray, float]:
+        """The keyframe at ankle turn ``theta`` and its centre of mass' sagittal offset."""
+        q = q0.copy()
+        for adr, sign, _ in ankles:
+            q[adr] += sign * theta
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        turn = foot_rot @ data.xmat[foot].reshape(3, 3).T  # puts the first foot back
+        q[qadr:qadr + 3] = turn @ (data.xpos[root] - data.xpos[foot]) + foot_pos
+        mujoco.mju_mat2Quat(q[qadr + 3:qadr + 7], (turn @ data.xmat[root].reshape(3, 3)).ravel())
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        q[qadr + 2] += low0 - float(_points(model, data)[0][:, 2].min())
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        return q, float(data.subtree_com[root] @ sagittal) - mid
+
+    _, off = pose(0.0)
+    if abs(off) <= BALANCED * half or lo >= hi:
+        return False
+    f_lo, f_hi = pose(lo)[1], pose(hi)[1]
+    if f_lo * f_hi > 0:
+        return False
+    for _ in range(30):
+        c = 0.5 * (lo + hi)
+        f_c = pose(c)[1]
+        if f_lo * f_c <= 0:
+            hi, f_hi = c, f_c
+        else:
+            lo, f_lo = c, f_c
+    q, _ = pose(0.5 * (lo + hi))
+    q[qadr + 2] += lift
+    spec.add_key(name="home", qpos=mjcf_round_vector(q))
+    return True

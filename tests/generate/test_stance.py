@@ -1,0 +1,151 @@
+"""The writer's stance rules (robovae.generate.stance): soles laid flat, a balanced home pose."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+import robovae.envs  # noqa: F401  (registers robovae/Walk-v0)
+from robovae.data.features import LINK, get_feature_set
+from robovae.data.mjcf import model_to_graph
+from robovae.data.procedural import procedural_spec
+from robovae.evaluate.quality.stage import rest_pose, robot_points, stage
+from robovae.evaluate.quality.standing import standing
+from robovae.evaluate.scene import prepare
+from robovae.generate.pipeline import generate
+from robovae.generate.stance import MAX_SOLE_TILT, support_points
+from robovae.generate.writer import write_robot
+
+FS = get_feature_set("kinematic")
+_I, _J = (0, 1, 2, 0, 0, 1), (0, 1, 2, 1, 2, 2)
+
+
+def _biped(tilt_deg: float = 0.0, com_shift: float = 0.0):
+    """A procedural biped whose feet boxes are pitched by ``tilt_deg`` and whose pelvis' centre
+    of mass is moved ``com_shift`` m along x (what a decoder's imprecision does), and the names
+    of its MuJoCo bodies."""
+    model = procedural_spec(1, "biped").compile()
+    g = model_to_graph(model, FS, name="biped")
+    names = [model.body(b).name for b in range(model.nbody)]
+    x = g.x.numpy().astype(np.float64)
+    c, s = math.cos(math.radians(tilt_deg)), math.sin(math.radians(tilt_deg))
+    pitch = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    axes, ipos = FS.slice("link.box_axes"), FS.slice("link.ipos")
+    for i, (t, b) in enumerate(zip(g.node_type.tolist(), g.mj_id.tolist())):
+        if t != LINK:
+            continue
+        if names[b].endswith("_foot"):
+            a = np.zeros((3, 3))
+            a[_I, _J] = x[i, axes]
+            a[_J, _I] = x[i, axes]
+            x[i, axes] = (pitch @ a @ pitch.T)[_I, _J]
+        if names[b] == "pelvis":
+            x[i, ipos.start] += com_shift
+    out = g.clone()
+    out.x = torch.from_numpy(x).to(g.x.dtype)
+    return out
+
+
+def _leaves(model: mujoco.MjModel) -> set[int]:
+    """Bodies without child bodies (the biped's two feet)."""
+    return set(range(1, model.nbody)) - set(model.body_parentid[1:].tolist())
+
+
+def _write(graph, folder, stance: bool):
+    return write_robot(graph, folder, FS, stance=stance)
+
+
+def test_level_soles_lays_tilted_feet_flat_and_the_biped_stands(tmp_path):
+    g = _biped(tilt_deg=10.0)
+    before = _write(g, tmp_path / "off", stance=False)
+    after = _write(g, tmp_path / "on", stance=True)
+    assert after.rules == ["level_soles"] and before.rules == []
+    assert not standing(before.robot_path).stands
+    assert standing(after.robot_path).stands
+    model = mujoco.MjModel.from_xml_path(str(after.robot_path))
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    feet = [g for g in range(model.ngeom) if model.geom_bodyid[g] in _leaves(model)
+            and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX]
+    assert len(feet) == 2
+    for f in feet:  # one face of each sole is horizontal
+        assert np.abs(data.geom_xmat[f].reshape(3, 3)[2]).max() == pytest.approx(1.0, abs=1e-5)
+    pts, _, _ = support_points(model, data, tol=1e-4)
+    assert len(pts) >= 8  # two flat soles: four corners each on the floor
+
+
+def test_a_sole_tilted_beyond_the_limit_is_left(tmp_path):
+    g = _biped(tilt_deg=MAX_SOLE_TILT + 10.0)
+    assert "level_soles" not in _write(g, tmp_path / "on", stance=True).rules
+
+
+def test_balance_home_leans_the_biped_over_its_feet(tmp_path):
+    g = _biped(com_shift=-0.25)
+    before = _write(g, tmp_path / "off", stance=False)
+    after = _write(g, tmp_path / "on", stance=True)
+    assert after.rules == ["balance_home"]
+    assert not standing(before.robot_path).stands
+    assert standing(after.robot_path).stands
+    model = mujoco.MjModel.from_xml_path(str(after.robot_path))
+    home = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
+    assert home >= 0 and model.nkey == 1
+    rest, key = mujoco.MjData(model), mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, key, home)
+    for d in (rest, key):
+        mujoco.mj_kinematics(model, d)
+        mujoco.mj_comPos(model, d)
+    root = 1
+    feet = sorted(_leaves(model))
+    assert len(feet) == 2
+    # the feet keep their place on the floor, the lowest point its height
+    assert np.abs(key.xpos[feet] - rest.xpos[feet]).max() < 2e-3
+    assert robot_points(model, key, root)[:, 2].min() == pytest.approx(
+        robot_points(model, rest, root)[:, 2].min(), abs=1e-4)
+    # the centre of mass moved over the soles (x: the sagittal axis of this biped)
+    pts, _, _ = support_points(model, key)
+    lo, hi = pts[:, 0].min(), pts[:, 0].max()
+    assert not lo <= rest.subtree_com[root, 0] <= hi
+    assert lo + 0.25 * (hi - lo) <= key.subtree_com[root, 0] <= hi - 0.25 * (hi - lo)
+    # what starts the robot sees its home pose: the standing test, the stage's floor, the
+    # renderer and robovae/Walk-v0
+    np.testing.assert_allclose(rest_pose(model), model.key_qpos[home])
+    st = stage(after.robot_path)
+    mujoco.mj_resetDataKeyframe(st.model, st.data, home)
+    mujoco.mj_kinematics(st.model, st.data)
+    assert robot_points(st.model, st.data, st.root)[:, 2].min() == pytest.approx(st.floor_z,
+                                                                                 abs=1e-6)
+    np.testing.assert_allclose(prepare(after.robot_path, 64, 64).data.qpos,
+                               model.key_qpos[home])
+    env = gym.make("robovae/Walk-v0", robot=str(after.robot_path), reset_noise_scale=0.0)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_allclose(env.unwrapped.data.qpos, model.key_qpos[home], atol=1e-12)
+    env.close()
+
+
+@pytest.mark.parametrize("seed,kind", [(0, "biped"), (2, "biped"), (3, "humanoid"),
+                                       (3, "quadruped"), (4, "hexapod")])
+def test_stance_leaves_robots_that_stand_alone(seed, kind, tmp_path):
+    g = model_to_graph(procedural_spec(seed, kind).compile(), FS, name=kind)
+    off = _write(g, tmp_path / "off", stance=False)
+    on = _write(g, tmp_path / "on", stance=True)
+    assert on.rules == off.rules
+    assert on.robot_path.read_bytes() == off.robot_path.read_bytes()
+
+
+def test_generate_reports_the_stance_rules_and_can_skip_them(trained, tmp_path):
+    _, _, ckpt = trained
+    kw = dict(seed=0, jobs=1, progress=False, quality=False, validate=False)
+    generate(ckpt, 4, tmp_path / "on", **kw)
+    generate(ckpt, 4, tmp_path / "off", stance=False, **kw)
+
+    for name, stance in (("on", True), ("off", False)):
+        assert json.loads((tmp_path / name / "run.json").read_text())["stance"] is stance
+    rules = [r for line in (tmp_path / "off" / "manifest.jsonl").read_text().splitlines()
+             for r in json.loads(line)["rules"]]
+    assert "level_soles" not in rules and "balance_home" not in rules
