@@ -6,11 +6,11 @@ placement (:func:`robovae.generate.writer.graph_to_spec` with ``stance=True``; `
 generate`` asks for them, ``--no-stance`` does not). Each is reported per robot when it changes
 something. Both look at the robot's geometry at rest only, never at a simulation.
 
-**Support.** The robot's extent ``L`` is the diagonal of the box around its geoms' bounding
-boxes at rest; its *support points* are the lowest points of its geoms (a box's corners, the
+**Support.** Each geom of the robot has candidate lowest points at rest: a box's corners, the
 bottoms of a capsule's end spheres, a sphere's bottom, else the corners of the geom's bounding
-box) that lie within :data:`SUPPORT_TOL` ``· L`` of the lowest of them: where the robot meets
-the floor once it has settled a little.
+box. The robot's size ``L`` is the diagonal of the box around all of them; its *support
+points* are those within :data:`SUPPORT_TOL` ``· L`` of the lowest: where the robot meets the
+floor once it has settled a little.
 
 ``level_soles``
     A decoded collision box is a few degrees off, and a foot that meets the floor on an edge
@@ -54,11 +54,11 @@ from robovae.generate.mjcf_numbers import mjcf_round_vector
 __all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "SOLE_TOL", "SUPPORT_TOL", "balance_home",
            "level_soles", "support_points"]
 
-#: A sole's lowest corner lies within this share of the robot's extent of its lowest point.
+#: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
 #: Largest tilt (degrees) of a sole that ``level_soles`` lays flat.
 MAX_SOLE_TILT = 30.0
-#: Support points lie within this share of the robot's extent of its lowest point.
+#: Support points lie within this share of the robot's size L of its lowest point.
 SUPPORT_TOL = 0.03
 #: ``balance_home`` leaves a centre of mass inside this middle share of the soles' extent.
 BALANCED = 0.5
@@ -106,7 +106,7 @@ def _extent(points: np.ndarray) -> float:
 def support_points(model: mujoco.MjModel, data: mujoco.MjData, tol: float = SUPPORT_TOL
                    ) -> tuple[np.ndarray, np.ndarray, float]:
     """The support points at ``data``'s pose (kinematics done), their geoms and the robot's
-    extent (module docstring); ``tol``: share of the extent above the lowest point."""
+    size ``L`` (module docstring); ``tol``: share of ``L`` above the lowest point."""
     pts, owner = _points(model, data)
     if not len(pts):
         return pts, owner, 0.0
