@@ -12,8 +12,8 @@ processes once they have finished):
 
 - ``decode`` (one torch thread, as ``generate`` decodes while its workers run) or
   ``procedural graphs``;
-- ``writer``: rules + MjSpec + files in this process, as a worker writes (no load check, no
-  per-file fsync), one ``os.sync`` at the end;
+- ``writer``: rules + MjSpec + stance rules + files in this process, as a worker writes (no
+  load check, no per-file fsync), one ``os.sync`` at the end;
 - ``validate``: MuJoCo only, the written files, ``--jobs`` processes
   (:func:`robovae.generate.validate.validate_many`, ``--validation`` controls);
 - ``write + validate`` in ``--jobs`` spawned worker processes
@@ -132,10 +132,11 @@ def main() -> None:
 
     with _Clock() as c:
         paths = [write_robot(g, root / "w" / f"robot_{i:06d}", fs, check=False,
-                             durable=False).robot_path for i, g in enumerate(graphs)]
+                             durable=False, stance=True).robot_path
+                 for i, g in enumerate(graphs)]
         os.sync()
     writer = c
-    rows.append(_row("writer (rules + MjSpec + files), 1 process", args.n, c))
+    rows.append(_row("writer (rules + MjSpec + stance + files), 1 process", args.n, c))
 
     with _Clock(children=True) as c:
         checks = validate_many(paths, jobs=args.jobs, controls=args.validation)

@@ -75,28 +75,38 @@ _SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
 
 
 def _points(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """Every geom's candidate lowest points (world frame, module docstring) and their geoms."""
-    pts, owner = [], []
-    for g in range(model.ngeom):
-        if model.geom_bodyid[g] == 0:
-            continue
-        rot, pos, size = data.geom_xmat[g].reshape(3, 3), data.geom_xpos[g], model.geom_size[g]
-        t = model.geom_type[g]
-        if t == _BOX:
-            p = pos + (_SIGNS * size) @ rot.T
-        elif t == _CAPSULE:
-            ends = pos + np.outer([-size[1], size[1]], rot[:, 2])
-            p = ends - [0.0, 0.0, size[0]]
-        elif t == _SPHERE:
-            p = (pos - [0.0, 0.0, size[0]])[None]
-        else:
-            box = model.geom_aabb[g]
-            p = pos + (box[:3] + _SIGNS * box[3:]) @ rot.T
-        pts.append(p)
-        owner += [g] * len(p)
-    if not pts:
+    """Every geom's candidate lowest points (world frame, module docstring) and their geoms,
+    geom by geom in id order (one vectorised pass per geom type)."""
+    robot = np.flatnonzero(model.geom_bodyid != 0)
+    if not len(robot):
         return np.zeros((0, 3)), np.zeros(0, dtype=int)
-    return np.concatenate(pts), np.array(owner)
+    kind = model.geom_type[robot]
+    rot = data.geom_xmat[robot].reshape(-1, 3, 3)
+    pos, size = data.geom_xpos[robot], model.geom_size[robot]
+    count = np.where(kind == _CAPSULE, 2, np.where(kind == _SPHERE, 1, 8))
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    pts = np.empty((int(count.sum()), 3))
+    for sel, local in ((kind == _BOX, lambda i: _SIGNS[None] * size[i][:, None]),
+                       (~np.isin(kind, (_BOX, _CAPSULE, _SPHERE)),
+                        lambda i: (model.geom_aabb[robot[i]][:, None, :3]
+                                   + _SIGNS[None] * model.geom_aabb[robot[i]][:, None, 3:]))):
+        i = np.flatnonzero(sel)
+        if len(i):
+            corners = pos[i][:, None] + np.matmul(local(i), rot[i].transpose(0, 2, 1))
+            pts[(start[i][:, None] + np.arange(8)).ravel()] = corners.reshape(-1, 3)
+    i = np.flatnonzero(kind == _CAPSULE)
+    if len(i):
+        axis = rot[i][:, :, 2]
+        half = size[i][:, 1:2]
+        ends = np.stack([pos[i] + (-half) * axis, pos[i] + half * axis], axis=1)
+        ends[:, :, 2] -= size[i][:, None, 0]
+        pts[(start[i][:, None] + np.arange(2)).ravel()] = ends.reshape(-1, 3)
+    i = np.flatnonzero(kind == _SPHERE)
+    if len(i):
+        bottom = pos[i].copy()
+        bottom[:, 2] -= size[i][:, 0]
+        pts[start[i]] = bottom
+    return pts, np.repeat(robot, count)
 
 
 def _extent(points: np.ndarray) -> float:
