@@ -30,7 +30,7 @@ import numpy as np
 
 from robovae.data.loading import capture_mujoco_warnings, load_robot
 from robovae.evaluate.camera import robot_bounds
-from robovae.evaluate.quality.stage import REST_KEYFRAMES
+from robovae.evaluate.quality.stage import rest_key
 
 __all__ = ["Prepared", "Robot", "add_floor", "has_floor", "inject_floor", "inject_skeleton",
            "model_name", "prepare", "scene_option", "settle"]
@@ -171,11 +171,9 @@ def prepare(robot: Robot, width: int, height: int, floor: bool = True) -> Prepar
 def _at_rest(model: mujoco.MjModel) -> mujoco.MjData:
     """Data at the robot's rest keyframe (``qpos0`` without one), after ``mj_forward``."""
     data = mujoco.MjData(model)
-    for name in REST_KEYFRAMES:
-        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name)
-        if k >= 0:
-            mujoco.mj_resetDataKeyframe(model, data, k)
-            break
+    key = rest_key(model)
+    if key >= 0:
+        mujoco.mj_resetDataKeyframe(model, data, key)
     mujoco.mj_forward(model, data)
     return data
 

@@ -8,7 +8,9 @@ places it on the floor; :func:`write_robot` writes it (and a scene including it)
 model is compiled, ``mj_forward`` run at ``qpos0``, and the lowest point over the robot's geoms
 (corners of each geom's bounding box ``geom_aabb`` in the world frame) is lifted to
 ``z = clearance`` (m) by shifting the free bodies' ``pos[2]``. This changes the root link's
-``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it.
+``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it. With ``stance`` the
+stance rules run first (:mod:`robovae.generate.stance`: soles laid flat, then a ``home``
+keyframe lifted with the robot).
 
 **Round trip** (MJCF → graph → :func:`write_robot` → graph), within the 6-digit MJCF
 precision:

@@ -44,7 +44,7 @@ BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQP
 _BAD = [int(w) for w in BAD_WARNINGS]
 
 __all__ = ["FLOOR", "REST_KEYFRAMES", "Robot", "Stage", "compiled", "extent", "prepare",
-           "rest_pose", "robot_points", "stage", "stage_compiled", "unstable"]
+           "rest_key", "rest_pose", "robot_points", "stage", "stage_compiled", "unstable"]
 
 #: Keyframe names taken as a robot's rest pose (Menagerie's robots define ``home``).
 REST_KEYFRAMES = ("home", "stand", "standing")
@@ -136,7 +136,7 @@ def _stage_of(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> Stage
     else:
         mujoco.mj_resetData(model, data)
     root, _ = robot_root(model)
-    key = _rest_key(model)
+    key = rest_key(model)
     if key >= 0:  # floor and size where the robot starts: its rest keyframe
         data.qpos[:] = model.key_qpos[key]
         quiet_forward(model, data)
@@ -168,7 +168,7 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
         spec, model = loaded.spec, loaded.model
     if not _has_floor(model):
         data = mujoco.MjData(model)
-        key = _rest_key(model)
+        key = rest_key(model)
         if key >= 0:
             data.qpos[:] = model.key_qpos[key]
         quiet_forward(model, data)
@@ -227,7 +227,7 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
     if np.count_nonzero(model.geom_bodyid == 0) != 1:
         spec.delete(floor)
         return prepare(spec)[1]
-    key = _rest_key(model)
+    key = rest_key(model)
     if data is None or key >= 0:
         data = mujoco.MjData(model) if data is None else data
         if key >= 0:  # where prepare puts the floor: under the rest keyframe
@@ -240,7 +240,7 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
         return _stage_of(spec.compile(), data)
 
 
-def _rest_key(model: mujoco.MjModel) -> int:
+def rest_key(model: mujoco.MjModel) -> int:
     """Id of the robot's keyframe named in :data:`REST_KEYFRAMES` (the first found), else -1."""
     for name in REST_KEYFRAMES:
         k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, name)
@@ -253,7 +253,7 @@ def rest_pose(model: mujoco.MjModel) -> np.ndarray:
     """The robot's rest ``qpos``: its keyframe named in :data:`REST_KEYFRAMES` when it has one
     (real robots' ``qpos0`` is often outside their joint ranges: Go2's knees), else
     ``qpos0``; hinge and slide positions clipped into their joint ranges."""
-    k = _rest_key(model)
+    k = rest_key(model)
     q = model.key_qpos[k].copy() if k >= 0 else model.qpos0.copy()
     for j in range(model.njnt):
         if model.jnt_type[j] in MOVING and model.jnt_limited[j]:
