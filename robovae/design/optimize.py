@@ -28,8 +28,9 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
   from ``(seed, i, 2)``, any kind).
 
 Latent candidates are decoded from ``z`` alone (greedy; with node latents, every node's latent
-at its conditional prior mean), written like ``robovae generate`` writes a robot (for walk and
-stand a root joint becomes a floating base; for reach the base stays fixed), and scored by
+at its conditional prior mean), written as ``robovae generate`` writes a robot
+(:data:`WRITER`: for walk and stand a root joint becomes a floating base, for reach the base
+stays fixed; mirrored limbs; the writer's stance rules), and scored by
 :func:`robovae.design.score.score_robot` with score seed 0 (every robot gets the same gait
 search). A decoding that did not finish its tree (it reached the decoder's node or depth
 limit: a chain cut off, :func:`robovae.model.prior.unfinished`) is not a robot of the model
@@ -48,7 +49,8 @@ Output folder ``out``:
   continues from it: CMA-ES is replayed from the logged scores, resampling and restarts
   included (its candidates are deterministic for the seed; a mismatch is refused), the
   baselines skip logged indices. A log of other settings (model, task, seed, score version,
-  search space, population, the rules for unfinished decodings and restarts) is refused; a
+  search space, population, the rules for unfinished decodings and restarts, the writer) is
+  refused; a
   larger ``--budget`` extends the run.
 - ``best/<method>/rank_<k>/robot.xml`` (+ ``scene.xml``): the ``top`` best robots per method,
   rewritten at the end; ``convergence.png``: best score so far against evaluations.
@@ -90,6 +92,9 @@ CMA_RESAMPLES = 20
 RESTART_AFTER = 10
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
+#: How a decoded candidate is written (as ``robovae generate``): generation fixes
+#: (:func:`robovae.generate.fixes.decoded_fixes`), then the writer with its stance rules.
+WRITER = "floating base (walk, stand), mirrored limbs, stance rules"
 
 
 def procedural_seed(seed: int, index: int) -> int:
@@ -126,10 +131,10 @@ def _evaluate(item: tuple) -> dict:
             folder.mkdir(parents=True, exist_ok=True)
             (folder / "robot.xml").write_text(procedural_spec(payload).to_xml())
         else:
-            from robovae.generate.rules import floating_base
+            from robovae.generate.fixes import decoded_fixes
 
-            graph = floating_base(payload, fs_name)[0] if floating else payload
-            write_robot(graph, folder, fs_name, name=folder.name, scene=False)
+            graph = decoded_fixes(payload, fs_name, floating=floating)[0]
+            write_robot(graph, folder, fs_name, name=folder.name, scene=False, stance=True)
         res = score_robot(folder / "robot.xml", task, seed=0)
         if res.get("error"):  # the scratch file is gone: name the candidate, not the file
             res["error"] = res["error"].replace(f"{folder / 'robot.xml'}: ", "")
@@ -174,7 +179,8 @@ class _Run:
                          "cma_population": self.cma.population_size,
                          "unfinished": f"cma resamples {CMA_RESAMPLES}, prior redraws "
                                        f"{PRIOR_REDRAWS}, then 0",
-                         "cma_restarts": f"IPOP after {RESTART_AFTER} generations"}
+                         "cma_restarts": f"IPOP after {RESTART_AFTER} generations",
+                         "writer": WRITER}
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
         self.log = {"settings": self.settings, "budget": budget,
@@ -312,7 +318,7 @@ class _Run:
 def _write_best(run: _Run) -> dict:
     """Rewrite ``best/<method>/rank_<k>/`` from the log; returns the summary per method."""
     from robovae.data.procedural import procedural_spec
-    from robovae.generate.rules import floating_base
+    from robovae.generate.fixes import decoded_fixes
     from robovae.generate.writer import scene_xml, write_robot
 
     best_dir = run.out / "best"
@@ -331,8 +337,8 @@ def _write_best(run: _Run) -> dict:
                 (folder / "scene.xml").write_text(scene_xml("robot.xml", f"{m}_{k}_scene"))
             else:
                 g = run._decode([np.array(rec["z"])])[0]
-                g = floating_base(g, run.model.feature_set)[0] if run.floating else g
-                write_robot(g, folder, run.model.feature_set, name=f"{m}_rank{k}")
+                g = decoded_fixes(g, run.model.feature_set, floating=run.floating)[0]
+                write_robot(g, folder, run.model.feature_set, name=f"{m}_rank{k}", stance=True)
     shutil.rmtree(best_dir, ignore_errors=True)
     os.replace(tmp, best_dir)
     return summary

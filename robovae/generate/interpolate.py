@@ -5,10 +5,11 @@ means), step ``k`` of ``n`` decodes ``z_k = (1 - t_k) mu_a + t_k mu_b`` with ``t
 greedily. With node latents, the nodes' latent means are interpolated the same way, node by
 node in pre-order, the shorter robot's list padded with the other's tail:
 ``w_k[i] = (1 - t_k) w_a[i] + t_k w_b[i]``; so the two ends are exactly the robots'
-reconstructions. Every step then gets the generation rules (a root joint becomes a floating
-base, as in ``robovae generate``), writes ``step_<k>/robot.xml`` and validates it in MuJoCo
-(:func:`~robovae.generate.validate.validate_robot`): the paper's §6.2 question of whether the
-space between two designs holds usable robots.
+reconstructions. Every step then gets a floating base (a root joint becomes a free joint, as in
+``robovae generate``; limbs are not mirrored, so that the ends stay the reconstructions) and
+the writer's stance rules (:mod:`robovae.generate.stance`), writes ``step_<k>/robot.xml`` and
+validates it in MuJoCo (:func:`~robovae.generate.validate.validate_robot`): the paper's §6.2
+question of whether the space between two designs holds usable robots.
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
         step = Step(tk, g)
         if out is not None:
             written = write_robot(g, Path(out) / f"step_{k:02d}", model.feature_set,
-                                  name=f"step_{k:02d}")
+                                  name=f"step_{k:02d}", stance=True)
             step.path = Path(written.robot_path)
             if validate:
                 step.validation = validate_robot(step.path)

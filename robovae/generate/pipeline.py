@@ -40,8 +40,7 @@ from robovae.errors import RobovaeError
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.build import build_robot
-from robovae.generate.rules import floating_base
-from robovae.generate.symmetry import complete_pairs, mirror_limbs
+from robovae.generate.fixes import decoded_fixes
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import PRIORS, RoboVAE
@@ -314,15 +313,8 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     draws = [0] * len(graphs) if draws is None else draws
     for i, g, zi, k in zip(indices, graphs, z, draws):
         name = f"robovae_s{seed}_{i:06d}"
-        fixes: list[str] = ["redraw_unfinished"] if k else []
-        if floating:
-            g, changed = floating_base(g, fs)
-            fixes += ["floating_base"] if changed else []
-        if mirror:
-            g, changed = mirror_limbs(g, fs)
-            fixes += ["mirror_limbs"] if changed else []
-            g, changed = complete_pairs(g, fs)
-            fixes += ["complete_pairs"] if changed else []
+        g, fixes = decoded_fixes(g, fs, floating=floating, mirror=mirror)
+        fixes = (["redraw_unfinished"] if k else []) + fixes
         rec = robot_record(g, model.normalizer)
         rec.update(index=int(i), name=name, seed=seed, temperature=temperature,
                    latent=[round(float(v), 6) for v in zi], draw=int(k), rules=fixes,

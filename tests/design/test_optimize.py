@@ -17,6 +17,7 @@ from robovae.design.optimize import (
     METHODS,
     PRIOR_REDRAWS,
     UNFINISHED,
+    WRITER,
     best_so_far,
     optimize,
     principal_basis,
@@ -24,6 +25,8 @@ from robovae.design.optimize import (
 from robovae.design.score import reach_score, score_robot, walk_score
 from robovae.envs.walk import walk_scene
 from robovae.evaluate.quality.locomotion import gait
+from robovae.generate.fixes import decoded_fixes
+from robovae.generate.writer import write_robot
 from robovae.model.prior import unfinished
 
 
@@ -133,6 +136,15 @@ def test_optimize_writes_log_plot_best_and_resumes(trained_nodes, tmp_path):
     assert np.allclose(z, z @ basis @ np.linalg.pinv(basis), atol=1e-8)
     assert (out / "convergence.png").stat().st_size > 1000
     assert not (out / ".work").exists()
+    # the best robots are written as robovae generate writes a robot (fixes, then stance)
+    best = max(log["evaluations"]["prior"], key=lambda r: (r["score"], -r["index"]))
+    m64 = copy.deepcopy(model).to(torch.float64)
+    g = decoded_fixes(m64.decode(torch.tensor([best["z"]], dtype=torch.float64))[0],
+                      model.feature_set)[0]
+    ref = write_robot(g, tmp_path / "ref", model.feature_set, name="prior_rank0", stance=True)
+    assert ref.robot_path.read_bytes() == \
+        (out / "best" / "prior" / "rank_0" / "robot.xml").read_bytes()
+    assert log["settings"]["writer"] == WRITER
     # a larger budget continues: the logged evaluations are kept, CMA-ES is replayed
     optimize(ckpt, "stand", 5, out, seed=1, jobs=1, top=2, progress=False, variance=0.5)
     log2 = json.loads((out / "log.json").read_text())
