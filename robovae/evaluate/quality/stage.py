@@ -136,15 +136,12 @@ def _stage_of(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> Stage
     else:
         mujoco.mj_resetData(model, data)
     root, _ = robot_root(model)
-    key = rest_key(model)
-    if key >= 0:  # floor and size where the robot starts: its rest keyframe
-        data.qpos[:] = model.key_qpos[key]
-        quiet_forward(model, data)
-        pts = robot_points(model, data, root)
-        mujoco.mj_resetData(model, data)
+    keyed = _to_rest_key(model, data)  # floor and size where the robot starts
     quiet_forward(model, data)
-    if key < 0:
-        pts = robot_points(model, data, root)
+    pts = robot_points(model, data, root)
+    if keyed:  # the stage's data stays at qpos0
+        mujoco.mj_resetData(model, data)
+        quiet_forward(model, data)
     floor_z = _floor_height(model, data, float(pts[:, 2].min()))
     size = max(float(np.linalg.norm(pts.max(0) - pts.min(0))), 1e-6)  # extent()
     free = bool(model.body_jntnum[root] >= 1 and model.jnt_type[model.body_jntadr[root]] == FREE)
@@ -168,9 +165,7 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
         spec, model = loaded.spec, loaded.model
     if not _has_floor(model):
         data = mujoco.MjData(model)
-        key = rest_key(model)
-        if key >= 0:
-            data.qpos[:] = model.key_qpos[key]
+        _to_rest_key(model, data)
         quiet_forward(model, data)
         lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
         spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
@@ -218,20 +213,18 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
     robot's lowest point at ``qpos0`` (or its rest keyframe), where :func:`prepare` adds it,
     and the spec compiled once more (``spec`` is changed; ``model`` is not). ``None``: the
     floor is the robot's own and ``model`` is staged as it is (a copy). When other world geoms
-    sit beside the added
-    plane (a height field: :func:`prepare` would add no floor), the plane is deleted and the
-    spec prepared from scratch. ``data``: ``model``'s data at ``qpos0`` (made when None).
+    sit beside the added plane (a height field: :func:`prepare` would add no floor), the plane
+    is deleted and the spec prepared from scratch. ``data``: ``model``'s data at ``qpos0``
+    (made when None).
     """
     if floor is None:
         return stage(model)
     if np.count_nonzero(model.geom_bodyid == 0) != 1:
         spec.delete(floor)
         return prepare(spec)[1]
-    key = rest_key(model)
-    if data is None or key >= 0:
-        data = mujoco.MjData(model) if data is None else data
-        if key >= 0:  # where prepare puts the floor: under the rest keyframe
-            data.qpos[:] = model.key_qpos[key]
+    fresh = data is None
+    data = mujoco.MjData(model) if fresh else data
+    if _to_rest_key(model, data) or fresh:  # where prepare puts the floor
         mujoco.mj_kinematics(model, data)
     lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
     floor.pos = [0.0, 0.0, lowest]
@@ -247,6 +240,15 @@ def rest_key(model: mujoco.MjModel) -> int:
         if k >= 0:
             return k
     return -1
+
+
+def _to_rest_key(model: mujoco.MjModel, data: mujoco.MjData) -> bool:
+    """Set ``data.qpos`` to the robot's rest keyframe (:func:`rest_key`) when it has one;
+    returns whether it has (nothing is computed)."""
+    key = rest_key(model)
+    if key >= 0:
+        data.qpos[:] = model.key_qpos[key]
+    return key >= 0
 
 
 def rest_pose(model: mujoco.MjModel) -> np.ndarray:
