@@ -188,9 +188,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="sampling prior: the latent mixture fitted to the training robots "
                    "(default when the checkpoint has one) or the standard normal N(0, I)")
     g.add_argument("--node-temperature", type=float, default=None,
-                   help="std multiplier of the node latents' noise (default: --temperature); "
-                   "0: every node's detail at its prior mean, more robots stand, fewer "
-                   "training robots are covered (docs/generation.md)")
+                   help="std multiplier of the node latents' noise (default: the checkpoint's "
+                   "node_temperature, else --temperature); 0: every node's detail at its "
+                   "prior mean, more robots stand, fewer training robots are covered "
+                   "(docs/generation.md)")
     g.add_argument("--like", help="a robot file: sample variations of it (around its encoded "
                    "latent, within --radius) instead of prior samples")
     g.add_argument("--radius", type=float, default=0.5,

@@ -19,6 +19,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import multiprocessing
 import os
 import re
@@ -205,13 +206,14 @@ def generate(
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
     Raises:
-        RobovaeError: ``n`` is not a positive integer, ``out`` cannot be written to, or it
-            holds robots of another run.
+        RobovaeError: ``n`` is not a positive integer, a temperature is negative, ``out``
+            cannot be written to, or it holds robots of another run.
 
     ``out`` is tied to the model and settings that started it (``run.json``): resuming with
     another checkpoint, seed, temperature or validation is refused unless ``overwrite``.
-    ``temperature`` scales the robot latent ``z``; ``node_temperature`` (default:
-    ``temperature``) the node latents' noise (the detail of each node). ``mirror``: near-mirror
+    ``temperature`` scales the robot latent ``z``; ``node_temperature`` (default: the
+    checkpoint's ``node_temperature``, else ``temperature``) the node latents' noise (the detail
+    of each node). ``mirror``: near-mirror
     limb pairs become exact mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`,
     reported as ``mirror_limbs``) and a stray limb beside them gets its mirror image
     (:func:`~robovae.generate.symmetry.complete_pairs`, reported as ``complete_pairs``).
@@ -231,6 +233,10 @@ def generate(
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")
     if isinstance(redraws, bool) or not isinstance(redraws, int) or redraws < 0:
         raise RobovaeError(f"robovae: --redraws must be a non-negative integer, got {redraws!r}")
+    for name, t in (("--temperature", temperature), ("--node-temperature", node_temperature)):
+        if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))
+                              or not 0 <= t < math.inf):
+            raise RobovaeError(f"robovae: {name} must be a non-negative number, got {t!r}")
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
                            f"not {n!r}")
@@ -238,6 +244,8 @@ def generate(
     model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
     if prior is not None:
         model.hparams.prior = prior
+    if node_temperature is None:  # the checkpoint's setting, recorded as such
+        node_temperature = model.hparams.get("node_temperature")
     out = Path(out)
     run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
            "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,

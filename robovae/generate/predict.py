@@ -95,7 +95,8 @@ class RobotWriter(BasePredictionWriter):
         run = {"model": model_fingerprint(_Float32Weights(pl_module)),
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
                "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
-               "node_temperature": None, "redraws": int(hp.predict_redraws),
+               "node_temperature": pl_module.hparams.get("node_temperature"),
+               "redraws": int(hp.predict_redraws),
                "prior": prior_name(pl_module), "stance": True}
         refused = None
         if trainer.is_global_zero:

@@ -26,8 +26,9 @@ class PriorModel(Protocol):
 
     hparams: Any
 
-    def sample_prior(self, seed: int, indices: Sequence[int],
-                     temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+    def sample_prior(self, seed: int, indices: Sequence[int], temperature: float = 1.0,
+                     node_temperature: float | None = None
+                     ) -> tuple[torch.Tensor, torch.Tensor]:
         """``(z, node_noise)`` of robots ``indices`` of a run with ``seed``."""
 
     def prior_latent(self, seed: int, index: int, temperature: float = 1.0,
@@ -74,16 +75,15 @@ def draw_robots(model: PriorModel, seed: int, indices: Sequence[int], temperatur
                 ) -> tuple[torch.Tensor, list[RobotData], list[int]]:
     """Decode robots ``indices`` of a run with ``seed`` from the prior (module docstring).
 
-    ``temperature`` scales ``z``, ``node_temperature`` (default: ``temperature``) the node
-    latents' noise; ``noise=False`` decodes every node latent at its conditional prior mean
-    instead (decoding from ``z`` alone, as :mod:`robovae.design.optimize` does). Returns
-    ``(z, graphs, draws)``: the latents decoded ``[B, latent_dim]``, the graphs, and per robot
-    the draw that was kept (0: the first; ``k``: after ``k`` redraws of an unfinished tree, at
-    most ``redraws``; the last draw is kept even if unfinished).
+    ``temperature`` scales ``z``, ``node_temperature`` (default: the model's setting, else
+    ``temperature``; :mod:`robovae.model.sampling`) the node latents' noise; ``noise=False``
+    decodes every node latent at its conditional prior mean instead (decoding from ``z`` alone,
+    as :mod:`robovae.design.optimize` does). Returns ``(z, graphs, draws)``: the latents
+    decoded ``[B, latent_dim]``, the graphs, and per robot the draw that was kept (0: the
+    first; ``k``: after ``k`` redraws of an unfinished tree, at most ``redraws``; the last draw
+    is kept even if unfinished).
     """
-    z, eps = model.sample_prior(seed, indices, temperature)
-    if node_temperature is not None:
-        eps = model.sample_prior(seed, indices, node_temperature)[1]
+    z, eps = model.sample_prior(seed, indices, temperature, node_temperature)
     eps = eps if noise else None
     graphs = model.decode(z, node_noise=eps)
     draws = [0] * len(graphs)

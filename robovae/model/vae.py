@@ -40,7 +40,8 @@ from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.latent_mixture import LatentMixture, fit_to_robots
 from robovae.model.loss import vae_loss
 from robovae.model.messages import level_messages
-from robovae.model.prior import draw_robots, latent, latent_rng, node_noise
+from robovae.model.prior import draw_robots
+from robovae.model.sampling import PriorSampling
 from robovae.model.tree import TreeSchedule, tree_schedule
 
 
@@ -60,7 +61,7 @@ def _draw(mu: Tensor, logvar: Tensor, sample: bool,
 PRIORS = ("mixture", "standard")
 
 
-class RoboVAE(L.LightningModule):
+class RoboVAE(PriorSampling, L.LightningModule):
     """Tree-GRU VAE over robot graphs.
 
     Args:
@@ -95,6 +96,9 @@ class RoboVAE(L.LightningModule):
             (that mixture, when fitted) or ``standard`` (``N(0, I)``, the VAE's own prior).
         feature_layers: hidden layers of the decoder's feature head
             (:mod:`robovae.model.decoder`).
+        node_temperature: the node latents' sampling temperature (``None``: the temperature of
+            ``z``; ``0``: every node at its conditional prior mean): a sampling setting only
+            (:mod:`robovae.model.sampling`), training ignores it.
     """
 
     def __init__(
@@ -118,11 +122,14 @@ class RoboVAE(L.LightningModule):
         prior_components: int = 64,
         prior: str = "mixture",
         feature_layers: int = 1,
+        node_temperature: float | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
         if prior not in PRIORS:
             raise ValueError(f"robovae: prior must be one of {', '.join(PRIORS)}, got {prior!r}")
+        if node_temperature is not None and not node_temperature >= 0:
+            raise ValueError(f"robovae: node_temperature must be >= 0, got {node_temperature!r}")
         self.latent_mixture = LatentMixture(latent_dim, prior_components) \
             if prior_components > 0 else None
         fs = get_feature_set(feature_set)
@@ -452,42 +459,3 @@ class RoboVAE(L.LightningModule):
                 "kl_nodes": terms["per_graph_kl_nodes"],
                 "nelbo_per_node": terms["per_graph_nelbo"] / nodes.to(terms["per_graph_nelbo"]),
                 "nodes": nodes}
-
-    def sample_prior(self, seed: int, indices: Sequence[int],
-                     temperature: float = 1.0) -> tuple[Tensor, Tensor]:
-        """``(z, node_noise)`` of robots ``indices`` of a generation run with ``seed``: the
-        arguments of :meth:`decode` for ancestral sampling. ``z`` is ``[B, latent_dim]``
-        (:func:`~robovae.model.prior.latent`, ``N(0, T^2 I)``), ``node_noise``
-        ``[B, max_nodes, node_latent_dim]`` (:func:`~robovae.model.prior.node_noise`), both in
-        the model's dtype; robot ``i`` draws the same values in any batch."""
-        hp = self.hparams
-        z = torch.stack([self.prior_latent(seed, int(i), temperature) for i in indices])
-        noise = torch.stack([node_noise(seed, int(i), hp.max_nodes, hp.node_latent_dim,
-                                        temperature) for i in indices])
-        return z.to(self.dtype), noise.to(self.dtype)
-
-    def sampling_mixture(self) -> LatentMixture | None:
-        """The sampling mixture when the model samples from one (``prior``) and has it."""
-        mix = self.latent_mixture
-        use = self.hparams.get("prior", "standard") == "mixture"
-        return mix if use and mix is not None and bool(mix.fitted) else None
-
-    def prior_latent(self, seed: int, index: int, temperature: float = 1.0,
-                     draw: int = 0) -> Tensor:
-        """Robot ``index``'s latent ``[latent_dim]`` (float32) of a run with ``seed``, draw
-        ``draw``, from the sampling prior (``prior``): the fitted mixture, else ``N(0, T² I)``
-        (:func:`~robovae.model.prior.latent`); each from the robot's own generator
-        (:func:`~robovae.model.prior.latent_rng`)."""
-        mix = self.sampling_mixture()
-        if mix is None:
-            return latent(seed, index, self.hparams.latent_dim, temperature, draw)
-        return mix.draw(latent_rng(seed, index, draw), temperature)
-
-    @torch.no_grad()
-    def sample(self, n: int, temperature: float = 1.0,
-               generator: torch.Generator | None = None) -> list[RobotData]:
-        """Decode ``n`` robots of the sampling prior at ``temperature``: those of a generation
-        run (:meth:`sample_prior`) whose seed is drawn from ``generator``."""
-        seed = int(torch.randint(0, 2**31 - 1, (1,), generator=generator))
-        z, noise = self.sample_prior(seed, range(n), temperature)
-        return self.decode(z, node_noise=noise)

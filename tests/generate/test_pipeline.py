@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
@@ -118,6 +119,34 @@ def test_node_temperature_sets_the_node_noise_only(trained_nodes, tmp_path):
     assert a == b and a != c  # default: the node noise follows --temperature
     za, zc = read_manifest(tmp_path / "a"), read_manifest(tmp_path / "c")
     assert all(za[i]["latent"] == zc[i]["latent"] for i in range(4))  # z is the same
+
+
+def test_the_checkpoints_node_temperature_is_the_default(trained_nodes, tmp_path):
+    model = trained_nodes[0]
+    cold = copy.deepcopy(model)
+    cold.hparams.node_temperature = 0.0  # as configs/default.yaml trains it
+    kw = dict(seed=2, validate=False, progress=False, jobs=1)
+    generate(model, 4, tmp_path / "zero", node_temperature=0.0, **kw)
+    generate(cold, 4, tmp_path / "model", **kw)
+    generate(cold, 4, tmp_path / "one", node_temperature=1.0, **kw)
+    generate(model, 4, tmp_path / "plain", **kw)
+    zero, cold_files, one, plain = (_files(tmp_path / k) for k in ("zero", "model", "one",
+                                                                  "plain"))
+    assert zero == cold_files and one == plain and cold_files != plain
+    run = json.loads((tmp_path / "model" / RUN).read_text())
+    assert run["node_temperature"] == 0.0  # the setting used, recorded
+    assert json.loads((tmp_path / "plain" / RUN).read_text())["node_temperature"] is None
+    graphs = cold.sample(2, generator=torch.Generator().manual_seed(0))
+    again = model.sample(2, generator=torch.Generator().manual_seed(0), node_temperature=0.0)
+    assert all(torch.equal(a.x, b.x) for a, b in zip(graphs, again))
+
+
+@pytest.mark.parametrize("arg", [dict(node_temperature=-0.5), dict(temperature=-1.0),
+                                 dict(temperature=float("nan"))])
+def test_a_negative_temperature_is_refused_before_writing(trained, tmp_path, arg):
+    with pytest.raises(RobovaeError, match="temperature must be a non-negative number"):
+        generate(trained[2], 2, tmp_path / "gen", progress=False, **arg)
+    assert not (tmp_path / "gen").exists()
 
 
 def test_latent_depends_on_seed_and_index_only():

@@ -238,6 +238,7 @@ def test_from_z_reconstruction_and_latent_costs(trained_nodes):
 @pytest.mark.parametrize(("setting", "message"), [
     ("--model.feature_layers=0", "the feature head needs feature_layers >= 1, got 0"),
     ("--model.tree_latent_dim=0", "tree_latent_dim must be in [1, latent_dim), got 0"),
+    ("--model.node_temperature=-1", "node_temperature must be >= 0, got -1.0"),
 ])
 def test_cli_refuses_an_invalid_model_setting_in_one_line(setting, message, tmp_path, capsys,
                                                           monkeypatch):
