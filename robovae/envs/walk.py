@@ -11,7 +11,8 @@ load) and turned into a scene with ``mujoco.MjSpec`` edits, never XML strings:
 - **root**: the robot is the top-level body with the largest subtree
   (:func:`robovae.data.mjcf.robot_root`). A root body **without any joint** (welded to the world,
   e.g. an arm) gets a free joint when ``free_base`` (default): it then falls onto the floor and
-  can walk if its body allows. With ``free_base=False`` it stays fixed: the root never moves, so
+  can walk if its body allows (its keyframes get the free joint's coordinates, the pose as
+  written, in their place). With ``free_base=False`` it stays fixed: the root never moves, so
   the forward velocity is always 0, the robot is always healthy and the only reward terms are
   the health bonus and the control cost (useful for reaching, or to check a policy's plumbing).
   A root with hinge/slide joints (planar robots such as the half-cheetah) is kept as it is.
@@ -147,6 +148,24 @@ def _joint_indices(model: mujoco.MjModel, root: int) -> tuple[np.ndarray, np.nda
     return np.array(qpos, dtype=int), np.array(qvel, dtype=int)
 
 
+def _free_root(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int) -> mujoco.MjModel:
+    """Give the jointless root body ``root`` a free joint and compile. A keyframe written for
+    the fixed robot (``nq`` positions, ``nv`` velocities) gets the root's pose (its ``qpos0``)
+    and a zero velocity inserted where the free joint's coordinates go, so its joint values
+    stay on their joints (MuJoCo would pad the key at the end and shift them)."""
+    # read before compiling: the compiler pads the spec's keys to the new sizes
+    keys = [(np.array(k.qpos, float), np.array(k.qvel, float)) for k in spec.keys]
+    _root_body(spec, root).add_freejoint()
+    new = _compile(spec)
+    q, d = int(new.jnt_qposadr[new.body_jntadr[root]]), int(new.jnt_dofadr[new.body_jntadr[root]])
+    for key, (qpos, qvel) in zip(spec.keys, keys):
+        if len(qpos) == model.nq:
+            key.qpos = np.insert(qpos, q, new.qpos0[q:q + 7])
+        if len(qvel) == model.nv:
+            key.qvel = np.insert(qvel, d, np.zeros(6))
+    return _compile(spec)
+
+
 def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco.MjSpec, _Scene]:
     """The robot's spec with floor, light and (``free_base``) a free joint on a jointless root
     (module docstring), and facts about it.
@@ -165,8 +184,7 @@ def walk_scene(robot: str | os.PathLike, free_base: bool = True) -> tuple[mujoco
         raise RobovaeError(f"robovae: {path}: a motor moves its root body relative to the world "
                            "(actuated base), nothing to walk with (actuator)")
     if free_base and model.body_jntnum[root] == 0:
-        _root_body(spec, root).add_freejoint()
-        model = _compile(spec)
+        model = _free_root(spec, model, root)
     data = mujoco.MjData(model)
     data.qpos[:] = rest_pose(model)
     quiet_forward(model, data)

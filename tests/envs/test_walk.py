@@ -130,6 +130,18 @@ def test_jointless_root_gets_a_free_joint_or_stays_fixed(tmp_path):
         assert info["forward_velocity"] == pytest.approx(0.0, abs=1e-9) and not terminated
 
 
+def test_a_fixed_robots_home_keyframe_keeps_its_joint_values_with_a_free_base(tmp_path):
+    spec = fixed_arm()
+    spec.add_key(name="home", qpos=[0.7], qvel=[0.0])
+    env = WalkEnv(write(spec, tmp_path / "arm.xml"))
+    assert env.model.nq == 8 and env.model.key_qpos.shape == (1, 8)
+    assert env.init_qpos[7] == pytest.approx(0.7)  # the hinge's home value on the hinge
+    assert env.init_qpos[3:7] == pytest.approx([1, 0, 0, 0])  # the base as written, upright
+    assert env.init_qpos[:2] == pytest.approx([0, 0])
+    env.reset(seed=0)
+    assert np.isfinite(env.step(np.zeros(1))[0]).all()
+
+
 def test_bad_robots_raise_one_line(tmp_path):
     spec = procedural_spec(0)
     for a in list(spec.actuators):
