@@ -12,7 +12,7 @@ from robovae.errors import RobovaeError
 from robovae.evaluate.quality import gait, gait_speed, stage, standing
 from robovae.evaluate.quality.locomotion import actuated_base
 from robovae.evaluate.quality.measure import measure
-from robovae.evaluate.quality.stage import prepare, rest_pose, stage_compiled
+from robovae.evaluate.quality.stage import prepare, rest_pose, robot_points, stage_compiled
 from robovae.generate.validate import check_robot
 
 FAST = {"rollouts": 8, "seconds": 2.0}
@@ -177,6 +177,35 @@ def test_rest_pose_is_the_home_keyframe_within_joint_ranges(menagerie_dir) -> No
     spec.joints[1].limited = mujoco.mjtLimited.mjLIMITED_TRUE
     m = spec.compile()
     assert m.qpos0[7] == 0 and rest_pose(m)[7] == m.jnt_range[1, 0] > 0  # clipped into range
+
+
+def test_the_floor_goes_under_the_clipped_rest_pose(tmp_path) -> None:
+    """A joint whose range excludes its qpos0 starts clipped into its range (rest_pose): the
+    floor goes under that pose, where the standing test starts, not under qpos0."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    body = spec.worldbody.add_body(name="trunk", pos=[0, 0, 1.0])
+    body.add_freejoint()
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.1, 0, 0])
+    leg = body.add_body(name="leg")
+    leg.add_joint(name="hip", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0], range=[1.0, 1.5],
+                  limited=mujoco.mjtLimited.mjLIMITED_TRUE)
+    leg.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.02, 0, 0],
+                 fromto=[0, 0, 0, 0, 0, -0.5])
+    path = tmp_path / "leg.xml"
+    path.write_text(spec.to_xml())
+    st = stage(path)
+    lowest = {}
+    for name, q in (("qpos0", st.model.qpos0), ("rest", rest_pose(st.model))):
+        data = mujoco.MjData(st.model)
+        data.qpos[:] = q
+        mujoco.mj_kinematics(st.model, data)
+        lowest[name] = float(robot_points(st.model, data, st.root)[:, 2].min())
+    assert lowest["rest"] > lowest["qpos0"] + 0.1  # the leg swung up by 1 rad
+    assert st.floor_z == pytest.approx(lowest["rest"], abs=1e-9)
+    checked = check_robot(path)  # the validator's model, staged without loading again
+    assert stage_compiled(checked.model, checked.spec, checked.floor, checked.data).floor_z \
+        == pytest.approx(lowest["rest"], abs=1e-9)
 
 
 def test_the_validators_model_gives_the_same_measures(tmp_path) -> None:

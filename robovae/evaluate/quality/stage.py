@@ -3,9 +3,9 @@ height and size.
 
 :func:`stage` accepts a robot file, a ``mujoco.MjSpec`` or a compiled ``mujoco.MjModel``:
 
-- a file or spec gets a floor (a plane at the robot's lowest point at ``qpos0``, or in its rest
-  keyframe when it has one: :func:`rest_pose`) when it has none (:func:`prepare`, which also
-  returns the spec with the floor);
+- a file or spec gets a floor (a plane at the robot's lowest point in its :func:`rest_pose`:
+  its rest keyframe or ``qpos0``, joints clipped into their ranges) when it has none
+  (:func:`prepare`, which also returns the spec with the floor);
 - a model is used as it is: it must already have a floor (an upward world plane or height
   field), else :class:`~robovae.errors.RobovaeError` is raised;
 - a :class:`Stage` is used as it is (its model copied when an integrator is asked for).
@@ -15,7 +15,7 @@ compiled (:func:`robovae.generate.validate.check_robot`: floor at ``z = 0``), wi
 file again.
 
 **Size.** ``Stage.extent`` is the diagonal (m) of the axis-aligned box around the robot's geoms
-(world-frame corners of their bounding boxes) and body origins at ``qpos0``. MuJoCo's
+(world-frame corners of their bounding boxes) and body origins in the rest pose. MuJoCo's
 ``stat.extent`` would be the natural choice but it includes world geoms and ``<statistic>``
 overrides (the dm_control quadruped's floor makes it 85 m, gymnasium's ant sets 8 m), so the
 robot's own box is used.
@@ -136,10 +136,10 @@ def _stage_of(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> Stage
     else:
         mujoco.mj_resetData(model, data)
     root, _ = robot_root(model)
-    keyed = _to_rest_key(model, data)  # floor and size where the robot starts
+    moved = _to_rest_pose(model, data)  # floor and size where the robot starts
     quiet_forward(model, data)
     pts = robot_points(model, data, root)
-    if keyed:  # the stage's data stays at qpos0
+    if moved:  # the stage's data stays at qpos0
         mujoco.mj_resetData(model, data)
         quiet_forward(model, data)
     floor_z = _floor_height(model, data, float(pts[:, 2].min()))
@@ -165,7 +165,7 @@ def prepare(robot: str | os.PathLike | mujoco.MjSpec, integrator: int | None = N
         spec, model = loaded.spec, loaded.model
     if not _has_floor(model):
         data = mujoco.MjData(model)
-        _to_rest_key(model, data)
+        _to_rest_pose(model, data)
         quiet_forward(model, data)
         lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
         spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
@@ -210,7 +210,7 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
     :func:`robovae.generate.validate.check_robot`), without loading it again.
 
     ``floor``: the plane added to a robot that had no floor, at any height. It is moved to the
-    robot's lowest point at ``qpos0`` (or its rest keyframe), where :func:`prepare` adds it,
+    robot's lowest point in its :func:`rest_pose`, where :func:`prepare` adds it,
     and the spec compiled once more (``spec`` is changed; ``model`` is not). ``None``: the
     floor is the robot's own and ``model`` is staged as it is (a copy). When other world geoms
     sit beside the added plane (a height field: :func:`prepare` would add no floor), the plane
@@ -224,7 +224,7 @@ def stage_compiled(model: mujoco.MjModel, spec: mujoco.MjSpec, floor: mujoco.Mjs
         return prepare(spec)[1]
     fresh = data is None
     data = mujoco.MjData(model) if fresh else data
-    if _to_rest_key(model, data) or fresh:  # where prepare puts the floor
+    if _to_rest_pose(model, data) or fresh:  # where prepare puts the floor
         mujoco.mj_kinematics(model, data)
     lowest = float(robot_points(model, data, robot_root(model)[0])[:, 2].min())
     floor.pos = [0.0, 0.0, lowest]
@@ -242,13 +242,12 @@ def rest_key(model: mujoco.MjModel) -> int:
     return -1
 
 
-def _to_rest_key(model: mujoco.MjModel, data: mujoco.MjData) -> bool:
-    """Set ``data.qpos`` to the robot's rest keyframe (:func:`rest_key`) when it has one;
-    returns whether it has (nothing is computed)."""
-    key = rest_key(model)
-    if key >= 0:
-        data.qpos[:] = model.key_qpos[key]
-    return key >= 0
+def _to_rest_pose(model: mujoco.MjModel, data: mujoco.MjData) -> bool:
+    """Set ``data.qpos`` to the robot's :func:`rest_pose`, where the standing test and the gait
+    search start; returns whether that differs from ``qpos0`` (nothing is computed)."""
+    q = rest_pose(model)
+    data.qpos[:] = q
+    return not np.array_equal(q, model.qpos0)
 
 
 def rest_pose(model: mujoco.MjModel) -> np.ndarray:
