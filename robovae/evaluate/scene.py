@@ -30,7 +30,7 @@ import numpy as np
 
 from robovae.data.loading import capture_mujoco_warnings, load_robot
 from robovae.evaluate.camera import robot_bounds
-from robovae.evaluate.quality.stage import rest_key
+from robovae.evaluate.quality.stage import rest_key, rest_pose
 
 __all__ = ["Prepared", "Robot", "add_floor", "has_floor", "inject_floor", "inject_skeleton",
            "model_name", "prepare", "scene_option", "settle"]
@@ -169,11 +169,14 @@ def prepare(robot: Robot, width: int, height: int, floor: bool = True) -> Prepar
 
 
 def _at_rest(model: mujoco.MjModel) -> mujoco.MjData:
-    """Data at the robot's rest keyframe (``qpos0`` without one), after ``mj_forward``."""
+    """Data at the robot's rest pose, where the quality measures start it
+    (:func:`~robovae.evaluate.quality.stage.rest_pose`: its rest keyframe, else ``qpos0``,
+    joints clipped into their ranges), after ``mj_forward``."""
     data = mujoco.MjData(model)
     key = rest_key(model)
     if key >= 0:
-        mujoco.mj_resetDataKeyframe(model, data, key)
+        mujoco.mj_resetDataKeyframe(model, data, key)  # its mocap poses and controls too
+    data.qpos[:] = rest_pose(model)
     mujoco.mj_forward(model, data)
     return data
 

@@ -21,7 +21,8 @@ from robovae.data.zoo import zoo_files
 from robovae.evaluate import render as R
 from robovae.evaluate.camera import auto_camera, camera_axes, robot_bounds, robot_points
 from robovae.evaluate.graph_drawing import draw_graph, tree_layout
-from robovae.evaluate.scene import scene_option
+from robovae.evaluate.quality.stage import rest_pose
+from robovae.evaluate.scene import prepare, scene_option
 
 REPO = Path(__file__).resolve().parents[2]
 GO2 = REPO.parent / "shared" / "menagerie" / "unitree_go2" / "go2.xml"
@@ -143,6 +144,22 @@ def test_bare_model_gets_a_scene_floor_and_is_not_changed() -> None:
     assert not np.array_equal(no_floor, with_floor)
     with pytest.warns(UserWarning, match="settle_seconds ignored"):
         R.render_robot(model, 64, 48, settle_seconds=0.1)
+
+
+def test_a_robot_is_pictured_in_its_clipped_rest_pose() -> None:
+    """The picture shows the pose the quality measures start from: knees whose range excludes
+    0 are drawn clipped into it, not at qpos0."""
+    spec = _legged_spec()
+    spec.compiler.degree = False
+    for joint in spec.joints[1:]:
+        joint.range, joint.limited = [0.4, 0.8], mujoco.mjtLimited.mjLIMITED_TRUE
+    prep = prepare(spec, 64, 48)
+    assert prep.data.qpos[7] == pytest.approx(0.4)
+    assert prep.data.qpos == pytest.approx(rest_pose(prep.model))
+    bent = R.render_robot(spec, 160, 120)
+    for joint in spec.joints[1:]:
+        joint.range = [-0.8, 0.8]  # qpos0 inside the range: the legs straight
+    assert not np.array_equal(bent, R.render_robot(spec, 160, 120))
 
 
 def test_geomless_bodies_get_a_skeleton() -> None:
