@@ -13,7 +13,8 @@ when most bodies' visible geoms are gone (meshes dropped) the collision geom gro
 well (:func:`scene_option`). Models that have a floor are rendered as they are. A robot is shown
 in its rest pose: its keyframe named in :data:`~robovae.evaluate.quality.stage.REST_KEYFRAMES`
 (``home``: a generated robot's balanced stance, :mod:`robovae.generate.stance`) when it has one,
-else ``qpos0``.
+else ``qpos0``, joints clipped into their ranges
+(:func:`~robovae.evaluate.quality.stage.rest_pose`: where the quality measures start it).
 """
 
 from __future__ import annotations
