@@ -130,12 +130,21 @@ def _leaves(model: mujoco.MjModel) -> set[int]:
     return {b for b in range(1, model.nbody) if b not in parents}
 
 
-def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel) -> bool:
+def _at_qpos0(model: mujoco.MjModel, data: mujoco.MjData | None) -> mujoco.MjData:
+    """``data`` (the caller's, kinematics done at ``qpos0``), else a new one at ``qpos0``."""
+    if data is None:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+    return data
+
+
+def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel,
+                data: mujoco.MjData | None = None) -> bool:
     """Lay the robot's soles flat (``level_soles``, module docstring): changes the quaternions
-    of the sole geoms of ``spec`` (``model``: ``spec`` compiled, at ``qpos0``). Returns whether a
-    sole was turned (``spec`` then needs compiling again)."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    of the sole geoms of ``spec`` (``model``: ``spec`` compiled; ``data``: its kinematics at
+    ``qpos0``, made here when not given). Returns whether a sole was turned (``spec`` then needs
+    compiling again)."""
+    data = _at_qpos0(model, data)
     pts, owner = _points(model, data)
     if not len(pts):
         return False
@@ -195,19 +204,19 @@ def _ankle(model: mujoco.MjModel, data: mujoco.MjData, foot: int, root: int,
     return None
 
 
-def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: float = 0.0
-                 ) -> bool:
+def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: float = 0.0,
+                 data: mujoco.MjData | None = None) -> bool:
     """Add the ``home`` keyframe of the ankle strategy to ``spec`` (``balance_home``, module
     docstring; ``model``: ``spec`` compiled, ``root``: the free-floating root body). ``lift``:
     added to the root's height in the keyframe (the floor placement's shift of the root, which
-    ``model`` does not have yet). Returns whether a keyframe was added."""
+    ``model`` does not have yet); ``data``: ``model``'s kinematics at ``qpos0`` (made here when
+    not given; its pose is changed). Returns whether a keyframe was added."""
     if any(k.name == "home" for k in spec.keys) or model.body_jntnum[root] < 1:
         return False
     free = int(model.body_jntadr[root])
     if model.jnt_type[free] != _FREE:
         return False
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    data = _at_qpos0(model, data)
     pts, owner, _ = support_points(model, data)
     limbs = np.array([_limb(model, int(model.geom_bodyid[g]), root) for g in owner])
     legs = sorted(set(limbs.tolist()))
