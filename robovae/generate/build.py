@@ -13,7 +13,12 @@ from robovae.evaluate.quality.stage import stage_compiled
 from robovae.generate.validate import check_robot
 from robovae.generate.writer import write_robot
 
-__all__ = ["build_robot"]
+__all__ = ["build_robot", "warm_up"]
+
+
+def warm_up() -> None:
+    """Nothing: a new worker process given it imports this module (the writer, the validator,
+    the quality measures) before its first robot."""
 
 
 def build_robot(item: tuple) -> dict:

@@ -11,7 +11,9 @@ folders are complete before their manifest line is written.
 With worker processes the main process decodes batch ``k + 1`` while the workers write,
 validate and measure batch ``k`` (the next batch is queued before the previous one is
 collected, so the workers never wait for the decoder, nor the decoder for them); decoding then
-uses one torch thread, the workers having the other cores.
+uses one torch thread, the workers having the other cores. The workers start before the
+model loads (each imports the writer, MuJoCo and the measures meanwhile), and an error or
+Ctrl-C cancels the robots still queued for them.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import time
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
-from contextlib import nullcontext
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
@@ -40,7 +42,7 @@ from robovae.data.graph import RobotData
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
-from robovae.generate.build import build_robot
+from robovae.generate.build import build_robot, warm_up
 from robovae.generate.fixes import decoded_fixes
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
@@ -241,55 +243,71 @@ def generate(
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
                            f"not {n!r}")
     start = time.perf_counter()
-    model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
-    if prior is not None:
-        model.hparams.prior = prior
-    if node_temperature is None:  # the checkpoint's setting, recorded as such
-        node_temperature = model.hparams.get("node_temperature")
-    out = Path(out)
-    run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
-           "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
-           "node_temperature": node_temperature, "redraws": redraws,
-           "prior": prior_name(model), "stance": stance}
-    if validate and controls != "zero":  # folders validated with zero controls resume as before
-        run["validation"] = controls
-    claim(out, run, overwrite)
-    # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
-    # a robot must not depend on which robots it was decoded with (byte-identical files)
-    model = model.to(torch.float64)
-    done = read_manifest(out)
-    todo = [i for i in range(n) if i not in done]
-    from tqdm.auto import tqdm
-
-    bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
-               disable=not progress)
     jobs = jobs or (os.cpu_count() or 1)
-    threads = torch.get_num_threads()
-    opts = {"seed": seed, "temperature": temperature, "validate": validate, "scene": scene,
-            "floating": floating, "mirror": mirror, "quality": quality, "controls": controls,
-            "stance": stance}
-    try:
-        if jobs > 1:
-            torch.set_num_threads(1)  # the workers have the other cores
-        with open_manifest(out / MANIFEST) as manifest, \
-                (worker_pool(jobs) if jobs > 1 else nullcontext()) as pool:
-            queued = None  # the batch the workers are on: its records and their results
-            for chunk in _chunks(todo, batch_size):
-                z, graphs, draws = draw_robots(model, seed, chunk, temperature,
-                                               node_temperature, redraws)
-                records, items = prepare_records(model, chunk, z, graphs, out, draws=draws,
-                                                 **opts)
-                built = pool.map(build_robot, items, chunksize=4) if pool is not None \
-                    else [build_robot(item) for item in items]
-                if queued is not None:  # collected only once the next batch is queued
+    # the workers start first: each imports the writer, MuJoCo and the measures (seconds of
+    # CPU) while this process loads the model and decodes the first batch
+    with (_workers(jobs) if jobs > 1 else nullcontext()) as pool:
+        model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
+        if prior is not None:
+            model.hparams.prior = prior
+        if node_temperature is None:  # the checkpoint's setting, recorded as such
+            node_temperature = model.hparams.get("node_temperature")
+        out = Path(out)
+        run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
+               "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
+               "node_temperature": node_temperature, "redraws": redraws,
+               "prior": prior_name(model), "stance": stance}
+        if validate and controls != "zero":  # folders validated with zero controls resume
+            run["validation"] = controls
+        claim(out, run, overwrite)
+        # float64 decoding: batched float32 matmuls differ in the last bits with the batch
+        # size, and a robot must not depend on which robots it was decoded with (byte-identical
+        # files)
+        model = model.to(torch.float64)
+        done = read_manifest(out)
+        todo = [i for i in range(n) if i not in done]
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
+                   disable=not progress)
+        threads = torch.get_num_threads()
+        opts = {"seed": seed, "temperature": temperature, "validate": validate, "scene": scene,
+                "floating": floating, "mirror": mirror, "quality": quality, "controls": controls,
+                "stance": stance}
+        try:
+            if jobs > 1:
+                torch.set_num_threads(1)  # the workers have the other cores
+            with open_manifest(out / MANIFEST) as manifest:
+                queued = None  # the batch the workers are on: its records and their results
+                for chunk in _chunks(todo, batch_size):
+                    z, graphs, draws = draw_robots(model, seed, chunk, temperature,
+                                                   node_temperature, redraws)
+                    records, items = prepare_records(model, chunk, z, graphs, out, draws=draws,
+                                                     **opts)
+                    built = pool.map(build_robot, items, chunksize=4) if pool is not None \
+                        else [build_robot(item) for item in items]
+                    if queued is not None:  # collected only once the next batch is queued
+                        _finish(manifest, *queued, bar)
+                    queued = records, built
+                if queued is not None:
                     _finish(manifest, *queued, bar)
-                queued = records, built
-            if queued is not None:
-                _finish(manifest, *queued, bar)
-    finally:
-        torch.set_num_threads(threads)
-    bar.close()
+        finally:
+            torch.set_num_threads(threads)
+        bar.close()
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
+
+
+@contextmanager
+def _workers(jobs: int) -> Iterator[ProcessPoolExecutor]:
+    """:func:`worker_pool` started warm; on an error (a refused ``out``, a bad checkpoint,
+    Ctrl-C) its queued robots are cancelled instead of waited for."""
+    pool = worker_pool(jobs, warm=True)
+    try:
+        yield pool
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
 
 
 def _finish(manifest: TextIO, records: list[dict], built, bar) -> None:
@@ -298,11 +316,17 @@ def _finish(manifest: TextIO, records: list[dict], built, bar) -> None:
     bar.update(len(records))
 
 
-def worker_pool(jobs: int) -> ProcessPoolExecutor:
+def worker_pool(jobs: int, warm: bool = False) -> ProcessPoolExecutor:
     """Worker processes for writing and validating robots. Started with ``spawn``: a worker
     forked from a process whose torch/OpenMP threads are running can deadlock in its first
-    torch call."""
-    return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+    torch call. ``warm``: start all ``jobs`` workers now, each importing
+    :mod:`robovae.generate.build` (:func:`~robovae.generate.build.warm_up`), instead of at the
+    first work item."""
+    pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+    if warm:
+        for _ in range(jobs):
+            pool.submit(warm_up)
+    return pool
 
 
 def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,

@@ -290,3 +290,20 @@ def test_worker_processes_give_the_same_robots(trained, tmp_path):
     strip = lambda r: {k: v for k, v in r.items() if k != "detail"}  # noqa: E731
     assert [strip(r) for r in read_manifest(tmp_path / "one").values()] == \
         [strip(r) for _, r in sorted(read_manifest(tmp_path / "two").items())]
+
+
+def test_warm_workers_start_at_once_and_drop_queued_robots_on_an_error():
+    """generate()'s worker pool starts its workers before the model loads, and an error (a
+    refused folder, Ctrl-C) cancels the robots still queued instead of waiting for them."""
+    import time
+
+    from robovae.generate import pipeline
+
+    with pytest.raises(KeyboardInterrupt), pipeline._workers(2) as pool:
+        assert len(pool._processes) == 2  # started warm, before any work item
+        queued = [pool.submit(time.sleep, 0.2) for _ in range(30)]
+        raise KeyboardInterrupt
+    deadline = time.monotonic() + 10  # the pool's manager thread cancels them
+    while not all(f.done() for f in queued) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert sum(f.cancelled() for f in queued) >= 20
