@@ -12,8 +12,8 @@ With worker processes the main process decodes batch ``k + 1`` while the workers
 validate and measure batch ``k`` (the next batch is queued before the previous one is
 collected, so the workers never wait for the decoder, nor the decoder for them); decoding then
 uses one torch thread, the workers having the other cores. The workers start before the
-model loads (each imports the writer, MuJoCo and the measures meanwhile), and an error or
-Ctrl-C cancels the robots still queued for them.
+first batch is decoded (each imports the writer, MuJoCo and the measures meanwhile), and an
+error or Ctrl-C cancels the robots still queued for them.
 """
 
 from __future__ import annotations
@@ -243,29 +243,29 @@ def generate(
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
                            f"not {n!r}")
     start = time.perf_counter()
+    model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
+    if prior is not None:
+        model.hparams.prior = prior
+    if node_temperature is None:  # the checkpoint's setting, recorded as such
+        node_temperature = model.hparams.get("node_temperature")
+    out = Path(out)
+    run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
+           "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
+           "node_temperature": node_temperature, "redraws": redraws,
+           "prior": prior_name(model), "stance": stance}
+    if validate and controls != "zero":  # folders validated with zero controls resume
+        run["validation"] = controls
+    claim(out, run, overwrite)
+    # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
+    # a robot must not depend on which robots it was decoded with (byte-identical files)
+    model = model.to(torch.float64)
+    done = read_manifest(out)
+    todo = [i for i in range(n) if i not in done]
     jobs = jobs or (os.cpu_count() or 1)
-    # the workers start first: each imports the writer, MuJoCo and the measures (seconds of
-    # CPU) while this process loads the model and decodes the first batch
-    with (_workers(jobs) if jobs > 1 else nullcontext()) as pool:
-        model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
-        if prior is not None:
-            model.hparams.prior = prior
-        if node_temperature is None:  # the checkpoint's setting, recorded as such
-            node_temperature = model.hparams.get("node_temperature")
-        out = Path(out)
-        run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
-               "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
-               "node_temperature": node_temperature, "redraws": redraws,
-               "prior": prior_name(model), "stance": stance}
-        if validate and controls != "zero":  # folders validated with zero controls resume
-            run["validation"] = controls
-        claim(out, run, overwrite)
-        # float64 decoding: batched float32 matmuls differ in the last bits with the batch
-        # size, and a robot must not depend on which robots it was decoded with (byte-identical
-        # files)
-        model = model.to(torch.float64)
-        done = read_manifest(out)
-        todo = [i for i in range(n) if i not in done]
+    # the workers start before decoding (each imports the writer, MuJoCo and the measures,
+    # seconds of CPU, while this process decodes the first batch), but after the refusals
+    # above and only with robots to make: nothing waits for workers that have no work
+    with (_workers(jobs) if jobs > 1 and todo else nullcontext()) as pool:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",

@@ -307,3 +307,21 @@ def test_warm_workers_start_at_once_and_drop_queued_robots_on_an_error():
     while not all(f.done() for f in queued) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert sum(f.cancelled() for f in queued) >= 20
+
+
+def test_no_worker_starts_for_a_refused_or_finished_run(trained, tmp_path):
+    """Workers start only once the run is accepted and has robots to make: a refused
+    checkpoint or folder, or a finished folder, returns without processes left importing."""
+    import multiprocessing
+
+    _, _, ckpt = trained
+    bad = tmp_path / "x.ckpt"
+    bad.write_bytes(b"not a checkpoint")
+    out = tmp_path / "gen"
+    with pytest.raises(RobovaeError):
+        generate(bad, 2, out, jobs=2, progress=False)
+    generate(ckpt, 2, out, seed=0, jobs=2, validate=False, progress=False)
+    with pytest.raises(RobovaeError, match="seed differ"):
+        generate(ckpt, 2, out, seed=1, jobs=2, validate=False, progress=False)
+    assert generate(ckpt, 2, out, seed=0, jobs=2, validate=False, progress=False).new == 0
+    assert multiprocessing.active_children() == []
