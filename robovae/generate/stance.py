@@ -51,8 +51,8 @@ import numpy as np
 
 from robovae.generate.mjcf_numbers import mjcf_round_vector
 
-__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "SOLE_TOL", "SUPPORT_TOL", "balance_home",
-           "level_soles", "support_points"]
+__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "SOLE_TOL", "SUPPORT_TOL", "at_qpos0",
+           "balance_home", "level_soles", "support_points"]
 
 #: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
@@ -130,8 +130,9 @@ def _leaves(model: mujoco.MjModel) -> set[int]:
     return {b for b in range(1, model.nbody) if b not in parents}
 
 
-def _at_qpos0(model: mujoco.MjModel, data: mujoco.MjData | None) -> mujoco.MjData:
-    """``data`` (the caller's, kinematics done at ``qpos0``), else a new one at ``qpos0``."""
+def at_qpos0(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> mujoco.MjData:
+    """``data`` (the caller's, kinematics done at ``qpos0``), else a new ``MjData`` with its
+    kinematics at ``qpos0`` (about 0.35 ms to make: callers that have one pass it on)."""
     if data is None:
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)
@@ -144,7 +145,7 @@ def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel,
     of the sole geoms of ``spec`` (``model``: ``spec`` compiled; ``data``: its kinematics at
     ``qpos0``, made here when not given). Returns whether a sole was turned (``spec`` then needs
     compiling again)."""
-    data = _at_qpos0(model, data)
+    data = at_qpos0(model, data)
     pts, owner = _points(model, data)
     if not len(pts):
         return False
@@ -216,7 +217,7 @@ def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: fl
     free = int(model.body_jntadr[root])
     if model.jnt_type[free] != _FREE:
         return False
-    data = _at_qpos0(model, data)
+    data = at_qpos0(model, data)
     pts, owner, _ = support_points(model, data)
     limbs = np.array([_limb(model, int(model.geom_bodyid[g]), root) for g in owner])
     legs = sorted(set(limbs.tolist()))

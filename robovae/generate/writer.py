@@ -51,7 +51,7 @@ from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
-from robovae.generate.stance import balance_home, level_soles
+from robovae.generate.stance import at_qpos0, balance_home, level_soles
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
 
@@ -99,13 +99,6 @@ def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
             raise ValueError(f"MuJoCo rejected the generated robot: {msg}") from None
 
 
-def _kinematics(model: mujoco.MjModel) -> mujoco.MjData:
-    """A new ``MjData`` of ``model`` with its kinematics at ``qpos0``."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    return data
-
-
 def _lowest_point(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> float:
     """Lowest world z over all geoms' bounding boxes at ``qpos0`` (``inf`` without geoms):
     ``min_g  z_g + R_g[2] · c_g - |R_g[2]| · h_g`` for each geom's box centre ``c_g`` and
@@ -113,8 +106,7 @@ def _lowest_point(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> f
     the model's kinematics at ``qpos0`` when the caller has them)."""
     if not model.ngeom:
         return math.inf
-    if data is None:
-        data = _kinematics(model)
+    data = at_qpos0(model, data)
     row = data.geom_xmat[:, 6:9]
     aabb = model.geom_aabb
     z = data.geom_xpos[:, 2] + np.einsum("gi,gi->g", row, aabb[:, :3]) \
@@ -139,11 +131,11 @@ def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: A
     stance = stance and bool(builder.free_bodies) and model.ngeom > 0
     placed = clearance is not None and bool(builder.free_bodies) and model.ngeom > 0
     # one MjData (about 0.35 ms to make) serves the stance rules and the floor placement
-    data = _kinematics(model) if stance or placed else None
+    data = at_qpos0(model) if stance or placed else None
     if stance and level_soles(spec, model, data):
         fired.append("level_soles")
         model = _compile(spec)
-        data = _kinematics(model)
+        data = at_qpos0(model)
     dz = 0.0
     if placed:
         dz = clearance - _lowest_point(model, data)
