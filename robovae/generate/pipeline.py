@@ -261,39 +261,38 @@ def generate(
     model = model.to(torch.float64)
     done = read_manifest(out)
     todo = [i for i in range(n) if i not in done]
-    jobs = jobs or (os.cpu_count() or 1)
-    # the workers start before decoding (each imports the writer, MuJoCo and the measures,
-    # seconds of CPU, while this process decodes the first batch), but after the refusals
-    # above and only with robots to make: nothing waits for workers that have no work
-    with (_workers(jobs) if jobs > 1 and todo else nullcontext()) as pool:
-        from tqdm.auto import tqdm
+    from tqdm.auto import tqdm
 
-        bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
-                   disable=not progress)
-        threads = torch.get_num_threads()
-        opts = {"seed": seed, "temperature": temperature, "validate": validate, "scene": scene,
-                "floating": floating, "mirror": mirror, "quality": quality, "controls": controls,
-                "stance": stance}
-        try:
-            if jobs > 1:
-                torch.set_num_threads(1)  # the workers have the other cores
-            with open_manifest(out / MANIFEST) as manifest:
-                queued = None  # the batch the workers are on: its records and their results
-                for chunk in _chunks(todo, batch_size):
-                    z, graphs, draws = draw_robots(model, seed, chunk, temperature,
-                                                   node_temperature, redraws)
-                    records, items = prepare_records(model, chunk, z, graphs, out, draws=draws,
-                                                     **opts)
-                    built = pool.map(build_robot, items, chunksize=4) if pool is not None \
-                        else [build_robot(item) for item in items]
-                    if queued is not None:  # collected only once the next batch is queued
-                        _finish(manifest, *queued, bar)
-                    queued = records, built
-                if queued is not None:
+    bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
+               disable=not progress)
+    jobs = jobs or (os.cpu_count() or 1)
+    threads = torch.get_num_threads()
+    opts = {"seed": seed, "temperature": temperature, "validate": validate, "scene": scene,
+            "floating": floating, "mirror": mirror, "quality": quality, "controls": controls,
+            "stance": stance}
+    try:
+        if jobs > 1:
+            torch.set_num_threads(1)  # the workers have the other cores
+        # the workers start before the first batch is decoded (each imports the writer, MuJoCo
+        # and the measures meanwhile), after the refusals above and only with robots to make
+        with open_manifest(out / MANIFEST) as manifest, \
+                (_workers(jobs) if jobs > 1 and todo else nullcontext()) as pool:
+            queued = None  # the batch the workers are on: its records and their results
+            for chunk in _chunks(todo, batch_size):
+                z, graphs, draws = draw_robots(model, seed, chunk, temperature,
+                                               node_temperature, redraws)
+                records, items = prepare_records(model, chunk, z, graphs, out, draws=draws,
+                                                 **opts)
+                built = pool.map(build_robot, items, chunksize=4) if pool is not None \
+                    else [build_robot(item) for item in items]
+                if queued is not None:  # collected only once the next batch is queued
                     _finish(manifest, *queued, bar)
-        finally:
-            torch.set_num_threads(threads)
-        bar.close()
+                queued = records, built
+            if queued is not None:
+                _finish(manifest, *queued, bar)
+    finally:
+        torch.set_num_threads(threads)
+    bar.close()
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 
 
