@@ -399,7 +399,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     bar = tqdm(total=3 * budget, initial=done, desc=f"optimize {task}", unit="robot",
                disable=not progress)
     jobs = jobs or (os.cpu_count() or 1)
-    pool = worker_pool(jobs) if jobs > 1 else None
+    # started warm (their imports overlap the first decoding), and only with robots to score
+    pool = worker_pool(jobs, warm=True) if jobs > 1 and done < 3 * budget else None
     try:
         while True:
             k = run.round(pool)

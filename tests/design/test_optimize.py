@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+import robovae.design.optimize as optimize_module
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
 from robovae.design.optimize import (
@@ -157,7 +158,7 @@ def test_optimize_writes_log_plot_best_and_resumes(trained_nodes, tmp_path):
     assert json.loads((fresh / "log.json").read_text()) == log2
 
 
-def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys):
+def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch):
     _, _, ckpt = trained_nodes
     out = tmp_path / "walk"
     assert main(["optimize", "--ckpt", str(ckpt), "--task", "walk", "--budget", "2",
@@ -169,6 +170,12 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys):
     # humanoid; test_walk_score_is_deterministic_and_normalised checks that a quadruped walks
     assert [len(log["evaluations"][m]) for m in METHODS] == [2, 2, 2]
     assert np.isfinite([r["score"] for m in METHODS for r in log["evaluations"][m]]).all()
+    # a finished run starts no worker processes
+    started = []
+    monkeypatch.setattr(optimize_module, "worker_pool", lambda *a, **k: started.append(a))
+    assert main(["optimize", "--ckpt", str(ckpt), "--task", "walk", "--budget", "2",
+                 "--out", str(out), "--jobs", "2"]) == 0
+    assert started == []
 
 
 @pytest.mark.parametrize("argv, message", [
