@@ -1,4 +1,5 @@
-"""Worker processes for building datasets, started with ``spawn``.
+"""Worker processes of the package (datasets, generation, validation, measures, experiments),
+started with ``spawn``.
 
 ``fork`` is unsafe here: once the parent has run torch (a dataset already built, a model
 loaded), its thread pools hold locks that forked children inherit locked, and the workers

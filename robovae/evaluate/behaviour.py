@@ -30,10 +30,8 @@ as a flat dict (``seconds`` renamed ``stand_seconds``).
 from __future__ import annotations
 
 import math
-import multiprocessing
 import os
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
@@ -41,6 +39,7 @@ import mujoco
 import numpy as np
 
 from robovae.data.loading import capture_mujoco_warnings
+from robovae.data.workers import process_pool
 from robovae.evaluate.population import knn_entropy
 from robovae.evaluate.quality.stage import MOVING, prepare
 from robovae.evaluate.quality.stage import unstable as is_unstable
@@ -163,8 +162,7 @@ def behaviour_many(paths: Sequence[str | Path], jobs: int = 1, entropy: dict | N
     jobs = jobs or (os.cpu_count() or 1)
     if jobs <= 1 or len(items) < 2:
         return [_behaviour_item(it) for it in items]
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(min(jobs, len(items)), mp_context=ctx) as pool:
+    with process_pool(min(jobs, len(items))) as pool:
         return list(pool.map(_behaviour_item, items))
 
 

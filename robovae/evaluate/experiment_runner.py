@@ -191,11 +191,9 @@ def run_all(specs: list[RunSpec], jobs: int, skip_done: bool) -> list[dict]:
         for s in todo:
             done.append(_announce(run_one(s)))
         return done
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from robovae.data.workers import process_pool
 
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(jobs, mp_context=ctx) as pool:
+    with process_pool(jobs) as pool:
         for r in pool.map(run_one, todo):
             done.append(_announce(r))
     return done

@@ -22,7 +22,6 @@ import copy
 import hashlib
 import json
 import math
-import multiprocessing
 import os
 import re
 import shutil
@@ -39,6 +38,7 @@ from typing import TextIO
 import torch
 
 from robovae.data.graph import RobotData
+from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
@@ -316,12 +316,11 @@ def _finish(manifest: TextIO, records: list[dict], built, bar) -> None:
 
 
 def worker_pool(jobs: int, warm: bool = False) -> ProcessPoolExecutor:
-    """Worker processes for writing and validating robots. Started with ``spawn``: a worker
-    forked from a process whose torch/OpenMP threads are running can deadlock in its first
-    torch call. ``warm``: start all ``jobs`` workers now, each importing
-    :mod:`robovae.generate.build` (:func:`~robovae.generate.build.warm_up`), instead of at the
-    first work item."""
-    pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+    """Worker processes for writing and validating robots
+    (:func:`robovae.data.workers.process_pool`: spawned, not forked). ``warm``: start all
+    ``jobs`` workers now, each importing :mod:`robovae.generate.build`
+    (:func:`~robovae.generate.build.warm_up`), instead of at the first work item."""
+    pool = process_pool(jobs)
     if warm:
         for _ in range(jobs):
             pool.submit(warm_up)

@@ -40,7 +40,6 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -50,6 +49,7 @@ import numpy as np
 from mujoco import rollout
 
 from robovae.data.loading import capture_mujoco_warnings, drop_missing_assets
+from robovae.data.workers import process_pool
 from robovae.evaluate.quality.stage import FLOOR, Stage, stage_compiled
 from robovae.evaluate.quality.standing import HeldRun, first_steps
 
@@ -281,11 +281,12 @@ def _validate_kw(args: tuple[str, dict]) -> dict:
 
 def validate_many(paths: Sequence[str | Path], jobs: int = 0, chunksize: int = 16,
                   **kw) -> list[Validation]:
-    """Validate many robots in ``jobs`` worker processes (0: all cores), in input order;
+    """Validate many robots in ``jobs`` worker processes (0: all cores; spawned:
+    :func:`robovae.data.workers.process_pool`), in input order;
     ``kw`` as in :func:`validate_robot`."""
     jobs = jobs or (os.cpu_count() or 1)
     items = [(str(p), kw) for p in paths]
     if jobs == 1 or len(items) < 8:
         return [Validation(**_validate_kw(i)) for i in items]
-    with ProcessPoolExecutor(jobs) as pool:
+    with process_pool(jobs) as pool:
         return [Validation(**r) for r in pool.map(_validate_kw, items, chunksize=chunksize)]

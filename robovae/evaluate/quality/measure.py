@@ -26,16 +26,15 @@ stops a population.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import mujoco
 
 from robovae.data.mjcf import model_to_graph
+from robovae.data.workers import process_pool
 from robovae.evaluate.descriptors import VECTOR_DESCRIPTORS, descriptors
 from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.quality.locomotion import gait
@@ -139,9 +138,8 @@ def measure_many(robots: Sequence[str | os.PathLike | mujoco.MjSpec], jobs: int 
                 out.append(_measure_item(it))
                 bar.update()
             return out
-        ctx = multiprocessing.get_context("spawn")
         chunk = max(1, min(16, len(items) // (4 * jobs)))
-        with ProcessPoolExecutor(min(jobs, len(items)), mp_context=ctx) as pool:
+        with process_pool(min(jobs, len(items))) as pool:
             for rec in pool.map(_measure_item, items, chunksize=chunk):
                 out.append(rec)
                 bar.update()
