@@ -98,9 +98,12 @@ def cmd_optimize(args: argparse.Namespace) -> int:
 
     res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
                    top=args.top, variance=args.variance, population=args.population)
+    held = "held-out median"  # the best robot re-scored with score seeds 1-8
     rows = [{"method": m, "evaluations": res[m]["evaluations"], "best": f"{res[m]['best']:.4f}",
-             "best index": res[m]["best_index"]} for m in METHODS]
-    print(format_table(rows, ["method", "evaluations", "best", "best index"]))
+             "best index": res[m]["best_index"],
+             held: "" if res[m]["heldout"] is None else f"{res[m]['heldout']:.4f}"}
+            for m in METHODS]
+    print(format_table(rows, ["method", "evaluations", "best", "best index", held]))
     print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
     return 0
 

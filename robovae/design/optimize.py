@@ -54,6 +54,12 @@ Output folder ``out``:
   larger ``--budget`` extends the run.
 - ``best/<method>/rank_<k>/robot.xml`` (+ ``scene.xml``): the ``top`` best robots per method,
   rewritten at the end; ``convergence.png``: best score so far against evaluations.
+- ``log.json``'s ``heldout``: each of those robots re-scored with the score seeds
+  :data:`HELDOUT_SEEDS` (1–8; the run selects with seed 0), their scores and median. A method's
+  best is the maximum of many scores under one seed and so is biased upwards (for walk, one
+  seed is one set of 8 random gaits: a robot can top the run on one lucky gait); the held-out
+  median measures the selected robot with seeds that played no part in selecting it. Kept by
+  robot index, so a continued run re-scores only robots new to the top.
 
 Bad input is refused with one line before anything is written: an unknown task, a budget
 ``<= 0``, a ``variance`` outside ``(0, 1]``, a population below 2, a checkpoint that is not
@@ -80,7 +86,8 @@ from robovae.model.checkpoint import load_model
 from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
 
-__all__ = ["METHODS", "best_so_far", "optimize", "principal_basis", "procedural_seed"]
+__all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "optimize", "principal_basis",
+           "procedural_seed"]
 
 METHODS = ("cma", "prior", "procedural")
 LOG = "log.json"
@@ -90,6 +97,8 @@ PRIOR_REDRAWS = 4
 CMA_RESAMPLES = 20
 #: CMA-ES generations without a better robot after which it restarts with twice the population.
 RESTART_AFTER = 10
+#: Score seeds of the held-out re-scoring of each method's best robots (module docstring).
+HELDOUT_SEEDS = tuple(range(1, 9))
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
@@ -143,6 +152,12 @@ def _evaluate(item: tuple) -> dict:
         return {"score": 0.0, "error": " ".join(f"writer: {type(e).__name__}: {e}".split())}
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def _score_seed(item: tuple[str, str, int]) -> float:
+    """The score of one robot file under one score seed (worker)."""
+    path, task, seed = item
+    return float(score_robot(path, task, seed=seed)["score"])
 
 
 def _atomic_json(path: Path, obj: dict) -> None:
@@ -220,6 +235,8 @@ class _Run:
             raise RobovaeError(f"robovae: {path}: log of another run ({diff} differ); use "
                                "another --out")
         self.log["evaluations"] = old["evaluations"]  # written back with the new settings
+        if "heldout" in old:
+            self.log["heldout"] = old["heldout"]
         done = self.log["evaluations"]["cma"]
         g = 0
         while len(done) - g >= self.cma.population_size:
@@ -315,6 +332,47 @@ class _Run:
         return len(jobs)
 
 
+def _top(run: _Run, method: str) -> list[dict]:
+    """The ``top`` best records of ``method``, best first (ties: lower index)."""
+    return sorted(run.log["evaluations"][method], key=lambda r: (-r["score"], r["index"]))[:run.top]
+
+
+def _heldout_cache(run: _Run) -> dict[tuple[str, int], list[float]]:
+    """Held-out scores already in the log, by (method, index), if of :data:`HELDOUT_SEEDS`."""
+    old = run.log.get("heldout", {})
+    if old.get("seeds") != list(HELDOUT_SEEDS):
+        return {}
+    return {(m, r["index"]): r["scores"] for m in METHODS for r in old.get(m, [])}
+
+
+def _heldout_todo(run: _Run) -> list[tuple[str, int, int]]:
+    """(method, rank, index) of the best robots without held-out scores yet."""
+    cache = _heldout_cache(run)
+    return [(m, k, r["index"]) for m in METHODS for k, r in enumerate(_top(run, m))
+            if (m, r["index"]) not in cache]
+
+
+def _heldout(run: _Run, pool) -> dict:
+    """Score the robots of ``best/`` with :data:`HELDOUT_SEEDS` (module docstring), store the
+    scores in the log and return them per method, best first."""
+    seeds = list(HELDOUT_SEEDS)
+    cache, todo = _heldout_cache(run), _heldout_todo(run)
+    items = [(str(run.out / "best" / m / f"rank_{k}" / "robot.xml"), run.task, s)
+             for m, k, _ in todo for s in seeds]
+    scores = list(pool.map(_score_seed, items)) if pool else [_score_seed(x) for x in items]
+    for j, (m, _, i) in enumerate(todo):
+        cache[(m, i)] = scores[j * len(seeds):(j + 1) * len(seeds)]
+    out: dict = {"seeds": seeds}
+    for m in METHODS:
+        out[m] = [{"rank": k, "index": r["index"], "score": r["score"],
+                   "scores": cache[(m, r["index"])],
+                   "median": float(np.median(cache[(m, r["index"])]))}
+                  for k, r in enumerate(_top(run, m))]
+    run.log["heldout"] = out
+    _atomic_json(run.out / LOG, run.log)
+    return out
+
+
 def _write_best(run: _Run) -> dict:
     """Rewrite ``best/<method>/rank_<k>/`` from the log; returns the summary per method."""
     from robovae.data.procedural import procedural_spec
@@ -325,9 +383,9 @@ def _write_best(run: _Run) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix=".best.", dir=run.out))
     summary = {}
     for m in METHODS:
-        recs = sorted(run.log["evaluations"][m], key=lambda r: (-r["score"], r["index"]))
-        top = recs[:run.top]
-        summary[m] = {"evaluations": len(recs), "best": top[0]["score"] if top else 0.0,
+        top = _top(run, m)
+        summary[m] = {"evaluations": len(run.log["evaluations"][m]),
+                      "best": top[0]["score"] if top else 0.0,
                       "best_index": top[0]["index"] if top else None}
         for k, rec in enumerate(top):
             folder = tmp / m / f"rank_{k}"
@@ -369,8 +427,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     per generation (None: ``4 + floor(3 ln k)``); each round scores as many baseline robots.
 
     Returns:
-        per method ``evaluations``, ``best`` score and ``best_index``; plus ``out``, ``log``,
-        ``plot``.
+        per method ``evaluations``, ``best`` score, ``best_index`` and ``heldout`` (the best
+        robot's median score under :data:`HELDOUT_SEEDS`); plus ``out``, ``log``, ``plot``.
 
     Raises:
         RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
@@ -400,18 +458,23 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
                disable=not progress)
     jobs = jobs or (os.cpu_count() or 1)
     # started warm (their imports overlap the first decoding), and only with robots to score
-    pool = worker_pool(jobs, warm=True) if jobs > 1 and done < 3 * budget else None
+    busy = done < 3 * budget or _heldout_todo(run)
+    pool = worker_pool(jobs, warm=True) if jobs > 1 and busy else None
     try:
         while True:
             k = run.round(pool)
             if k == 0:
                 break
             bar.update(k)
+        bar.close()
+        summary = _write_best(run)
+        heldout = _heldout(run, pool)
     finally:
         if pool is not None:
             pool.shutdown()
         bar.close()
         shutil.rmtree(out / ".work", ignore_errors=True)
-    summary = _write_best(run)
+    for m in METHODS:
+        summary[m]["heldout"] = heldout[m][0]["median"] if heldout[m] else None
     plot = _plot(run, out / "convergence.png")
     return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(plot)}

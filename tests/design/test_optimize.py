@@ -15,6 +15,7 @@ from robovae.cli import main
 from robovae.data.procedural import procedural_spec
 from robovae.design.optimize import (
     CMA_RESAMPLES,
+    HELDOUT_SEEDS,
     METHODS,
     PRIOR_REDRAWS,
     UNFINISHED,
@@ -170,7 +171,20 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
     # humanoid; test_walk_score_is_deterministic_and_normalised checks that a quadruped walks
     assert [len(log["evaluations"][m]) for m in METHODS] == [2, 2, 2]
     assert np.isfinite([r["score"] for m in METHODS for r in log["evaluations"][m]]).all()
-    # a finished run starts no worker processes
+    # each method's best robots are re-scored with the held-out score seeds 1-8
+    assert "held-out median" in text
+    held = log["heldout"]
+    assert held["seeds"] == list(HELDOUT_SEEDS) == list(range(1, 9))
+    for m in METHODS:
+        top = sorted(log["evaluations"][m], key=lambda r: (-r["score"], r["index"]))
+        assert [h["index"] for h in held[m]] == [r["index"] for r in top]
+        for h in held[m]:
+            assert len(h["scores"]) == 8 and h["median"] == np.median(h["scores"])
+    walker = held["procedural"][0]  # the humanoid: its score depends on the gaits drawn
+    path = out / "best" / "procedural" / "rank_0" / "robot.xml"
+    assert walker["scores"][:2] == [score_robot(path, "walk", seed=s)["score"] for s in (1, 2)]
+    assert walker["score"] == score_robot(path, "walk", seed=0)["score"]
+    # a finished run (held-out scores kept in the log) starts no worker processes
     started = []
     monkeypatch.setattr(optimize_module, "worker_pool", lambda *a, **k: started.append(a))
     assert main(["optimize", "--ckpt", str(ckpt), "--task", "walk", "--budget", "2",
