@@ -47,7 +47,8 @@ Output folder ``out``:
 - ``log.json``: the settings and every evaluation per method (index, score, details, ``z`` or
   procedural seed), rewritten atomically after each round. Re-running with the same ``out``
   continues from it: CMA-ES is replayed from the logged scores, resampling and restarts
-  included (its candidates are deterministic for the seed; a mismatch is refused), the
+  included (its candidates are deterministic for the seed; the resamples are taken from the
+  logged counts, not decoded again; a latent that differs from the log is refused), the
   baselines skip logged indices. A log of other settings (model, task, seed, score version,
   search space, population, the rules for unfinished decodings and restarts, the writer) is
   refused; a
@@ -222,6 +223,18 @@ class _Run:
                 rejected[k] += 1
         return ys, [self.origin + self.basis @ y for y in ys], graphs, rejected
 
+    def _replay_ask(self, recs: Sequence[dict]) -> list[np.ndarray]:
+        """The search points of a logged generation: the ``cma.ask()`` calls of :meth:`ask`
+        in their order, the resamples taken from the records' ``rejected`` counts instead of
+        from decoding again (the latents are then checked against the log)."""
+        ys = [self.cma.ask() for _ in range(self.cma.population_size)]
+        rejected = [r.get("rejected", 0) for r in recs]
+        for round_ in range(1, max(rejected, default=0) + 1):
+            for k, n in enumerate(rejected):
+                if n >= round_:
+                    ys[k] = self.cma.ask()
+        return ys
+
     def load(self) -> None:
         """Continue from ``log.json`` (module docstring); refuses another run's log."""
         path = self.out / LOG
@@ -241,8 +254,8 @@ class _Run:
         g = 0
         while len(done) - g >= self.cma.population_size:
             pop = self.cma.population_size
-            ys, zs, _, _ = self.ask()
-            self._check_replay(zs, done[g:g + pop])
+            ys = self._replay_ask(done[g:g + pop])
+            self._check_replay([self.origin + self.basis @ y for y in ys], done[g:g + pop])
             self._tell(ys, done[g:g + pop])
             g += pop
         self.pending = done[g:]  # a generation cut by the budget

@@ -281,6 +281,16 @@ def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes,
         assert (r.get("error") == UNFINISHED) == unfinished(model, decode(r["z"]))
         assert r.get("error") != UNFINISHED or k == PRIOR_REDRAWS
     assert any(r["draw"] > 0 for r in ev["prior"])
+    # a continued run replays CMA-ES with its resamples and reaches the log of a fresh run
+    # (population 2: the 6 logged evaluations are 3 whole generations, replayed on loading)
+    optimize(model, "stand", 6, tmp_path / "opt2", seed=0, jobs=1, progress=False, population=2)
+    log6 = json.loads((tmp_path / "opt2" / "log.json").read_text())
+    assert any(r["rejected"] > 0 for r in log6["evaluations"]["cma"])
+    optimize(model, "stand", 8, tmp_path / "opt2", seed=0, jobs=1, progress=False, population=2)
+    optimize(model, "stand", 8, tmp_path / "fresh", seed=0, jobs=1, progress=False, population=2)
+    longer = json.loads((tmp_path / "opt2" / "log.json").read_text())
+    assert longer["evaluations"]["cma"][:6] == log6["evaluations"]["cma"]
+    assert longer == json.loads((tmp_path / "fresh" / "log.json").read_text())
 
 
 def test_cma_es_restarts_with_twice_the_population_and_resumes(trained_nodes, tmp_path,
