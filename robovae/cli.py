@@ -105,6 +105,9 @@ def cmd_optimize(args: argparse.Namespace) -> int:
             for m in METHODS]
     print(format_table(rows, ["method", "evaluations", "best", "best index", held]))
     print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
+    if args.task == "walk":  # robovae.design.results
+        print(f"each best robot's gait: {args.out}/best/<method>/rank_<k>/gait.json "
+              "(replay in robovae/Walk-v0: robovae.envs.gait)")
     return 0
 
 

@@ -53,14 +53,10 @@ Output folder ``out``:
   search space, population, the rules for unfinished decodings and restarts, the writer) is
   refused; a
   larger ``--budget`` extends the run.
-- ``best/<method>/rank_<k>/robot.xml`` (+ ``scene.xml``): the ``top`` best robots per method,
-  rewritten at the end; ``convergence.png``: best score so far against evaluations.
-- ``log.json``'s ``heldout``: each of those robots re-scored with the score seeds
-  :data:`HELDOUT_SEEDS` (1–8; the run selects with seed 0), their scores and median. A method's
-  best is the maximum of many scores under one seed and so is biased upwards (for walk, one
-  seed is one set of 8 random gaits: a robot can top the run on one lucky gait); the held-out
-  median measures the selected robot with seeds that played no part in selecting it. Kept by
-  robot index, so a continued run re-scores only robots new to the top.
+- ``best/<method>/rank_<k>/`` (the ``top`` best robots per method; for walk with the gait
+  that scored them, ``gait.json``), the held-out re-scoring of those robots (the log's
+  ``heldout``) and ``convergence.png``, rebuilt from the log at the end of every run
+  (:mod:`robovae.design.results`).
 
 Bad input is refused with one line before anything is written: an unknown task, a budget
 ``<= 0``, a ``variance`` outside ``(0, 1]``, a population below 2, a checkpoint that is not
@@ -80,6 +76,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from robovae.design.results import (
+    HELDOUT_SEEDS,
+    METHODS,
+    best_so_far,
+    heldout,
+    heldout_todo,
+    plot,
+    write_best,
+)
 from robovae.design.score import SCORE_VERSION, TASKS, score_robot
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import model_fingerprint, worker_pool
@@ -90,7 +95,6 @@ from robovae.model.vae import RoboVAE
 __all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "optimize", "principal_basis",
            "procedural_seed"]
 
-METHODS = ("cma", "prior", "procedural")
 LOG = "log.json"
 #: Redraws of a prior sample whose decoding did not finish its tree (as ``robovae generate``).
 PRIOR_REDRAWS = 4
@@ -98,8 +102,6 @@ PRIOR_REDRAWS = 4
 CMA_RESAMPLES = 20
 #: CMA-ES generations without a better robot after which it restarts with twice the population.
 RESTART_AFTER = 10
-#: Score seeds of the held-out re-scoring of each method's best robots (module docstring).
-HELDOUT_SEEDS = tuple(range(1, 9))
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
@@ -120,12 +122,6 @@ def principal_basis(cov: np.ndarray, variance: float) -> np.ndarray:
     share = np.cumsum(lam) / lam.sum()
     k = min(int(np.searchsorted(share, variance - 1e-9)) + 1, len(lam))
     return vecs[:, :k] * np.sqrt(lam[:k])
-
-
-def best_so_far(scores: Sequence[float]) -> np.ndarray:
-    """Running maximum of ``scores`` (the convergence curve)."""
-    return np.maximum.accumulate(np.asarray(scores, dtype=float)) if len(scores) else \
-        np.zeros(0)
 
 
 def _evaluate(item: tuple) -> dict:
@@ -153,12 +149,6 @@ def _evaluate(item: tuple) -> dict:
         return {"score": 0.0, "error": " ".join(f"writer: {type(e).__name__}: {e}".split())}
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-
-
-def _score_seed(item: tuple[str, str, int]) -> float:
-    """The score of one robot file under one score seed (worker)."""
-    path, task, seed = item
-    return float(score_robot(path, task, seed=seed)["score"])
 
 
 def _atomic_json(path: Path, obj: dict) -> None:
@@ -214,7 +204,7 @@ class _Run:
         rejected = [0] * len(ys)
         todo = list(range(len(ys)))
         while todo:
-            for k, g in zip(todo, self._decode([self.origin + self.basis @ ys[k] for k in todo])):
+            for k, g in zip(todo, self.decode([self.origin + self.basis @ ys[k] for k in todo])):
                 graphs[k] = g
             todo = [k for k in todo
                     if unfinished(self.model, graphs[k]) and rejected[k] < CMA_RESAMPLES]
@@ -283,8 +273,12 @@ class _Run:
                 raise RobovaeError(f"robovae: {self.out / LOG}: CMA-ES replay differs from the "
                                    f"log at evaluation {rec['index']}; use another --out")
 
+    def save(self) -> None:
+        """Write ``log.json`` (atomically)."""
+        _atomic_json(self.out / LOG, self.log)
+
     @torch.no_grad()
-    def _decode(self, zs: list[np.ndarray]) -> list:
+    def decode(self, zs: list[np.ndarray]) -> list:
         z = torch.as_tensor(np.stack(zs), dtype=torch.float64)
         return self.model.decode(z)
 
@@ -341,96 +335,8 @@ class _Run:
                 self.pending = []
             else:
                 self.pending = gen
-        _atomic_json(self.out / LOG, self.log)
+        self.save()
         return len(jobs)
-
-
-def _top(run: _Run, method: str) -> list[dict]:
-    """The ``top`` best records of ``method``, best first (ties: lower index)."""
-    return sorted(run.log["evaluations"][method], key=lambda r: (-r["score"], r["index"]))[:run.top]
-
-
-def _heldout_cache(run: _Run) -> dict[tuple[str, int], list[float]]:
-    """Held-out scores already in the log, by (method, index), if of :data:`HELDOUT_SEEDS`."""
-    old = run.log.get("heldout", {})
-    if old.get("seeds") != list(HELDOUT_SEEDS):
-        return {}
-    return {(m, r["index"]): r["scores"] for m in METHODS for r in old.get(m, [])}
-
-
-def _heldout_todo(run: _Run) -> list[tuple[str, int, int]]:
-    """(method, rank, index) of the best robots without held-out scores yet."""
-    cache = _heldout_cache(run)
-    return [(m, k, r["index"]) for m in METHODS for k, r in enumerate(_top(run, m))
-            if (m, r["index"]) not in cache]
-
-
-def _heldout(run: _Run, pool) -> dict:
-    """Score the robots of ``best/`` with :data:`HELDOUT_SEEDS` (module docstring), store the
-    scores in the log and return them per method, best first."""
-    seeds = list(HELDOUT_SEEDS)
-    cache, todo = _heldout_cache(run), _heldout_todo(run)
-    items = [(str(run.out / "best" / m / f"rank_{k}" / "robot.xml"), run.task, s)
-             for m, k, _ in todo for s in seeds]
-    scores = list(pool.map(_score_seed, items)) if pool else [_score_seed(x) for x in items]
-    for j, (m, _, i) in enumerate(todo):
-        cache[(m, i)] = scores[j * len(seeds):(j + 1) * len(seeds)]
-    out: dict = {"seeds": seeds}
-    for m in METHODS:
-        out[m] = [{"rank": k, "index": r["index"], "score": r["score"],
-                   "scores": cache[(m, r["index"])],
-                   "median": float(np.median(cache[(m, r["index"])]))}
-                  for k, r in enumerate(_top(run, m))]
-    run.log["heldout"] = out
-    _atomic_json(run.out / LOG, run.log)
-    return out
-
-
-def _write_best(run: _Run) -> dict:
-    """Rewrite ``best/<method>/rank_<k>/`` from the log; returns the summary per method."""
-    from robovae.data.procedural import procedural_spec
-    from robovae.generate.fixes import decoded_fixes
-    from robovae.generate.writer import scene_xml, write_robot
-
-    best_dir = run.out / "best"
-    tmp = Path(tempfile.mkdtemp(prefix=".best.", dir=run.out))
-    summary = {}
-    for m in METHODS:
-        top = _top(run, m)
-        summary[m] = {"evaluations": len(run.log["evaluations"][m]),
-                      "best": top[0]["score"] if top else 0.0,
-                      "best_index": top[0]["index"] if top else None}
-        for k, rec in enumerate(top):
-            folder = tmp / m / f"rank_{k}"
-            if m == "procedural":
-                folder.mkdir(parents=True)
-                (folder / "robot.xml").write_text(procedural_spec(rec["seed"]).to_xml())
-                (folder / "scene.xml").write_text(scene_xml("robot.xml", f"{m}_{k}_scene"))
-            else:
-                g = run._decode([np.array(rec["z"])])[0]
-                g = decoded_fixes(g, run.model.feature_set, floating=run.floating)[0]
-                write_robot(g, folder, run.model.feature_set, name=f"{m}_rank{k}", stance=True)
-    shutil.rmtree(best_dir, ignore_errors=True)
-    os.replace(tmp, best_dir)
-    return summary
-
-
-def _plot(run: _Run, path: Path) -> Path:
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(6, 4), dpi=100)
-    ax = fig.add_subplot()
-    for m in METHODS:
-        scores = [r["score"] for r in run.log["evaluations"][m]]
-        ax.plot(np.arange(1, len(scores) + 1), best_so_far(scores), label=m)
-    ax.set_xlabel("evaluations")
-    ax.set_ylabel(f"best {run.task} score so far")
-    ax.set_title(f"robovae optimize: {run.task}, seed {run.seed}")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, format="png")
-    return path
 
 
 def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
@@ -471,7 +377,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
                disable=not progress)
     jobs = jobs or (os.cpu_count() or 1)
     # started warm (their imports overlap the first decoding), and only with robots to score
-    busy = done < 3 * budget or _heldout_todo(run)
+    busy = done < 3 * budget or heldout_todo(run)
     pool = worker_pool(jobs, warm=True) if jobs > 1 and busy else None
     try:
         while True:
@@ -480,14 +386,14 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
                 break
             bar.update(k)
         bar.close()
-        summary = _write_best(run)
-        heldout = _heldout(run, pool)
+        summary = write_best(run)
+        held = heldout(run, pool)
     finally:
         if pool is not None:
             pool.shutdown()
         bar.close()
         shutil.rmtree(out / ".work", ignore_errors=True)
     for m in METHODS:
-        summary[m]["heldout"] = heldout[m][0]["median"] if heldout[m] else None
-    plot = _plot(run, out / "convergence.png")
-    return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(plot)}
+        summary[m]["heldout"] = held[m][0]["median"] if held[m] else None
+    png = plot(run, out / "convergence.png")
+    return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(png)}

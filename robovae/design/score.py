@@ -44,9 +44,10 @@ import mujoco
 import numpy as np
 
 from robovae.data.loading import quiet_forward
-from robovae.evaluate.quality.locomotion import gait
+from robovae.evaluate.quality.locomotion import GaitResult, gait
 
-__all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_score"]
+__all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_gait",
+           "walk_score"]
 
 #: Changes whenever a measure changes: an optimisation log of another version is not continued.
 #: 3: the walk score is the quality measure's gait search (issue 22); 4: rollouts that fly
@@ -58,17 +59,42 @@ _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 
 
+def _walk(path: str | os.PathLike, seed: int, trials: int, seconds: float, settle: float,
+          max_tilt: float) -> tuple[GaitResult, mujoco.MjModel]:
+    from robovae.envs.walk import walk_scene
+
+    _, scene = walk_scene(path)
+    return gait(scene.model, rollouts=trials, seconds=seconds, seed=seed,
+                settle=settle / seconds, max_tilt=max_tilt), scene.model
+
+
 def walk_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
                settle: float = 1.0, max_tilt: float = 60.0) -> dict:
     """Best open-loop gait speed in body lengths per second (module docstring): ``trials``
     gaits of ``seconds``, the first ``settle`` seconds not counted."""
-    from robovae.envs.walk import walk_scene
-
-    _, scene = walk_scene(path)
-    g = gait(scene.model, rollouts=trials, seconds=seconds, seed=seed,
-             settle=settle / seconds, max_tilt=max_tilt)
+    g, _ = _walk(path, seed, trials, seconds, settle, max_tilt)
     return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
             "frequency": g.frequency}
+
+
+def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
+              settle: float = 1.0, max_tilt: float = 60.0) -> dict:
+    """The gait that gives :func:`walk_score` (same arguments) its score, as JSON-ready
+    numbers: ``score``, ``speed``, ``extent``, ``seconds``, ``settle``, ``max_tilt``, the
+    ``score_seed``, and the gait itself, ``frequency`` (Hz), ``amplitude`` and ``phase`` per
+    actuator in the model's order (``actuators``: their names). In ``robovae/Walk-v0``'s
+    normalised actions it is ``a(t) = A sin(2 pi f t + phi)``
+    (:class:`robovae.envs.gait.SinusoidGait`); a robot that scores 0 has no gait (``frequency``
+    None, empty lists)."""
+    g, model = _walk(path, seed, trials, seconds, settle, max_tilt)
+    moves = g.speed > 0
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]
+    return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent, "score_seed": seed,
+            "trials": trials, "seconds": seconds, "settle": settle, "max_tilt": max_tilt,
+            "frequency": g.frequency if moves else None,
+            "actuators": names if moves else [],
+            "amplitude": [float(v) for v in g.amplitude] if moves else [],
+            "phase": [float(v) for v in g.phase] if moves else []}
 
 
 def stand_score(path: str | os.PathLike, seed: int = 0, seconds: float = 3.0) -> dict:

@@ -237,6 +237,10 @@ class WalkEnv(MujocoEnv):
             (off-screen modes use ``MUJOCO_GL``, e.g. ``egl``).
         width: render width (pixels).
         height: render height (pixels).
+
+    Attributes:
+        up_local: the root body's local direction that points up in the initial pose (its
+            tilt from vertical is the health's tilt).
     """
 
     metadata = {"render_modes": (["human"] if _HAS_DISPLAY else [])
@@ -280,7 +284,7 @@ class WalkEnv(MujocoEnv):
         mujoco.mj_forward(self.model, self.data)
         root = self.scene.root
         self._init_height = float(self.data.xpos[root, 2]) - self.scene.floor_z
-        self._up_local = self.data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
+        self.up_local = self.data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
 
     # -- MujocoEnv hooks -------------------------------------------------------------------
     def _initialize_simulation(self) -> tuple[mujoco.MjModel, mujoco.MjData]:
@@ -336,7 +340,7 @@ class WalkEnv(MujocoEnv):
     def _health(self) -> tuple[bool, float, float]:
         root = self.scene.root
         height = float(self.data.xpos[root, 2]) - self.scene.floor_z
-        up = float((self.data.xmat[root].reshape(3, 3) @ self._up_local)[2])
+        up = float((self.data.xmat[root].reshape(3, 3) @ self.up_local)[2])
         finite = bool(np.isfinite(self.data.qpos).all() and np.isfinite(self.data.qvel).all())
         stable = self._warning_count() == self._warnings
         healthy = (finite and stable and up >= self.cos_max_tilt

@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import json
 
+import gymnasium
 import mujoco
 import numpy as np
 import pytest
@@ -25,6 +26,8 @@ from robovae.design.optimize import (
     principal_basis,
 )
 from robovae.design.score import reach_score, score_robot, walk_score
+from robovae.envs import WALK_ID
+from robovae.envs.gait import SinusoidGait, replay
 from robovae.envs.walk import walk_scene
 from robovae.evaluate.quality.locomotion import gait
 from robovae.generate.fixes import decoded_fixes
@@ -184,6 +187,18 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
     path = out / "best" / "procedural" / "rank_0" / "robot.xml"
     assert walker["scores"][:2] == [score_robot(path, "walk", seed=s)["score"] for s in (1, 2)]
     assert walker["score"] == score_robot(path, "walk", seed=0)["score"]
+    # with each best robot, the gait that scored it; replayed in robovae/Walk-v0, it walks at
+    # the logged score (a robot that scored 0 has no gait to replay)
+    assert "gait.json" in text
+    for m in METHODS:
+        for h in held[m]:
+            g = json.loads((out / "best" / m / f"rank_{h['rank']}" / "gait.json").read_text())
+            assert g == h["gait"] and g["score"] == h["score"]
+            assert (g["frequency"] is None) == (h["score"] == 0)
+    assert walker["score"] > 0
+    env = gymnasium.make(WALK_ID, robot=str(path), frame_skip=1, reset_noise_scale=0.0)
+    r = replay(env, SinusoidGait.from_json(path.parent / "gait.json"), walker["gait"]["seconds"])
+    assert r.speed() / walker["gait"]["extent"] == pytest.approx(walker["score"], rel=1e-9)
     # a finished run (held-out scores kept in the log) starts no worker processes
     started = []
     monkeypatch.setattr(optimize_module, "worker_pool", lambda *a, **k: started.append(a))
