@@ -26,11 +26,14 @@ import shutil
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from robovae.design.score import score_robot, walk_gait
+
+if TYPE_CHECKING:  # the model stack stays out of the worker processes that import this module
+    from robovae.model.vae import RoboVAE
 
 __all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "heldout", "heldout_todo", "plot",
            "top_records", "write_best"]
@@ -49,7 +52,7 @@ class Run(Protocol):
     seed: int
     top: int
     floating: bool
-    model: object
+    model: RoboVAE
 
     def decode(self, zs: list[np.ndarray]) -> list:
         """The graphs decoded from latents ``zs`` as the run decodes its candidates."""
