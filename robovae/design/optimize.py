@@ -340,14 +340,17 @@ class _Run:
 
 
 def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
-             seed: int = 0, jobs: int = 0, top: int = 3, progress: bool = True,
+             seed: int = 0, jobs: int = 0, top: int = 10, progress: bool = True,
              variance: float = 0.95, population: int | None = None) -> dict:
     """Run (or continue) an optimisation (module docstring). ``population``: CMA-ES candidates
     per generation (None: ``4 + floor(3 ln k)``); each round scores as many baseline robots.
 
     Returns:
-        per method ``evaluations``, ``best`` score, ``best_index`` and ``heldout`` (the best
-        robot's median score under :data:`HELDOUT_SEEDS`); plus ``out``, ``log``, ``plot``.
+        per method ``evaluations``, ``best`` score, ``best_index``, ``heldout`` (the best
+        robot's median score under :data:`HELDOUT_SEEDS`), and ``heldout_best`` and
+        ``heldout_best_rank`` (the largest such median among the ``top`` best robots, and that
+        robot's rank: the pick of a user who wants the robot that does the task best, not the
+        one whose gaits were luckiest); plus ``out``, ``log``, ``plot``.
 
     Raises:
         RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
@@ -395,5 +398,9 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         shutil.rmtree(out / ".work", ignore_errors=True)
     for m in METHODS:
         summary[m]["heldout"] = held[m][0]["median"] if held[m] else None
+        # the robot that walks (stands, reaches) best on the held-out seeds may not be rank 0
+        pick = max(held[m], key=lambda h: (h["median"], -h["rank"]), default=None)
+        summary[m]["heldout_best"] = pick["median"] if pick else None
+        summary[m]["heldout_best_rank"] = pick["rank"] if pick else None
     png = plot(run, out / "convergence.png")
     return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(png)}

@@ -175,7 +175,7 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
     assert [len(log["evaluations"][m]) for m in METHODS] == [2, 2, 2]
     assert np.isfinite([r["score"] for m in METHODS for r in log["evaluations"][m]]).all()
     # each method's best robots are re-scored with the held-out score seeds 1-8
-    assert "held-out median" in text
+    assert "held-out median" in text and "held-out best (rank)" in text
     held = log["heldout"]
     assert held["seeds"] == list(HELDOUT_SEEDS) == list(range(1, 9))
     for m in METHODS:
@@ -183,6 +183,10 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
         assert [h["index"] for h in held[m]] == [r["index"] for r in top]
         for h in held[m]:
             assert len(h["scores"]) == 8 and h["median"] == np.median(h["scores"])
+        # the table names the top robot with the largest held-out median, and its rank
+        best = max(held[m], key=lambda h: (h["median"], -h["rank"]))
+        row = next(line for line in text.splitlines() if line.startswith(m))
+        assert row.split()[-2:] == [f"{best['median']:.4f}", f"({best['rank']})"]
     walker = held["procedural"][0]  # the humanoid: its score depends on the gaits drawn
     path = out / "best" / "procedural" / "rank_0" / "robot.xml"
     assert walker["scores"][:2] == [score_robot(path, "walk", seed=s)["score"] for s in (1, 2)]
