@@ -97,7 +97,8 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     from robovae.design.optimize import METHODS, optimize
 
     res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
-                   top=args.top, variance=args.variance, population=args.population)
+                   top=args.top, variance=args.variance, population=args.population,
+                   score_sets=args.score_sets)
     held = "held-out median"  # the best robot re-scored with score seeds 1-8
     pick = "held-out best (rank)"  # the largest such median among the --top best robots
     rows = [{"method": m, "evaluations": res[m]["evaluations"], "best": f"{res[m]['best']:.4f}",
@@ -234,6 +235,9 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--population", type=int, default=None,
                    help="CMA-ES candidates per generation (default: 4 + floor(3 ln k) for k "
                         "searched directions)")
+    o.add_argument("--score-sets", type=int, default=1,
+                   help="score each robot with this many score seeds and take the median (for "
+                        "walk: sets of 8 gaits; each evaluation costs that many scorings)")
     o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
     o.set_defaults(func=cmd_optimize)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "

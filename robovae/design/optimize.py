@@ -31,9 +31,13 @@ Latent candidates are decoded from ``z`` alone (greedy; with node latents, every
 at its conditional prior mean), written as ``robovae generate`` writes a robot
 (:data:`WRITER`: for walk and stand a root joint becomes a floating base, for reach the base
 stays fixed; mirrored limbs; the writer's stance rules), and scored by
-:func:`robovae.design.score.score_robot` with score seed 0 (every robot gets the same gait
-search). A decoding that did not finish its tree (it reached the decoder's node or depth
-limit: a chain cut off, :func:`robovae.model.prior.unfinished`) is not a robot of the model
+:func:`robovae.design.score.score_robot` with the run's score seeds (:func:`score_seeds`: seed
+0, and with ``score_sets = K > 1`` seeds 9 … K + 7 too; every robot gets the same gait
+searches): the score is the median of the ``K`` scores (for walk, the median over ``K`` sets of
+8 gaits of each set's best: a robot tops a run with ``K = 1`` on one lucky gait more often
+than on its walking, docs/design.md). The held-out seeds 1–8 that re-score the best robots
+are never among them. A decoding that did not finish its tree (it reached the decoder's node
+or depth limit: a chain cut off, :func:`robovae.model.prior.unfinished`) is not a robot of the model
 and costs no evaluation: a prior sample redraws its ``z`` as ``robovae generate`` does (up to
 :data:`PRIOR_REDRAWS` times, ``draw`` in its record); CMA-ES asks a new candidate in its place
 (up to :data:`CMA_RESAMPLES` times, ``rejected`` in the record: the resampling ``cmaes`` does
@@ -50,17 +54,16 @@ Output folder ``out``:
   included (its candidates are deterministic for the seed; the resamples are taken from the
   logged counts, not decoded again; a latent that differs from the log is refused), the
   baselines skip logged indices. A log of other settings (model, task, seed, score version,
-  search space, population, the rules for unfinished decodings and restarts, the writer) is
-  refused; a
-  larger ``--budget`` extends the run.
+  score seeds, search space, population, the rules for unfinished decodings and restarts, the
+  writer) is refused; a larger ``--budget`` extends the run.
 - ``best/<method>/rank_<k>/`` (the ``top`` best robots per method; for walk with the gait
   that scored them, ``gait.json``), the held-out re-scoring of those robots (the log's
   ``heldout``) and ``convergence.png``, rebuilt from the log at the end of every run
   (:mod:`robovae.design.results`).
 
 Bad input is refused with one line before anything is written: an unknown task, a budget
-``<= 0``, a ``variance`` outside ``(0, 1]``, a population below 2, a checkpoint that is not
-one, an ``out`` that is a file or holds a log of another run.
+``<= 0``, a ``variance`` outside ``(0, 1]``, a population below 2, ``score_sets`` below 1, a
+checkpoint that is not one, an ``out`` that is a file or holds a log of another run.
 """
 
 from __future__ import annotations
@@ -93,7 +96,7 @@ from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
 
 __all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "optimize", "principal_basis",
-           "procedural_seed"]
+           "procedural_seed", "score_seeds"]
 
 LOG = "log.json"
 #: Redraws of a prior sample whose decoding did not finish its tree (as ``robovae generate``).
@@ -124,9 +127,27 @@ def principal_basis(cov: np.ndarray, variance: float) -> np.ndarray:
     return vecs[:, :k] * np.sqrt(lam[:k])
 
 
+def score_seeds(sets: int) -> list[int]:
+    """The score seeds of a run with ``sets`` score sets: 0, then 9, 10, … (never one of the
+    held-out seeds :data:`HELDOUT_SEEDS`, 1–8)."""
+    return [0] + list(range(max(HELDOUT_SEEDS) + 1, max(HELDOUT_SEEDS) + sets))
+
+
+def _scored(path: Path, task: str, seeds: Sequence[int]) -> dict:
+    """The score of a robot file under ``seeds``: seed ``seeds[0]``'s result (details, error),
+    its score replaced, with more than one seed, by the median of the seeds' scores (all of them
+    in ``scores``; a robot that fails under the first seed is not scored again)."""
+    res = score_robot(path, task, seed=seeds[0])
+    if len(seeds) > 1:
+        scores = [res["score"]] + ([score_robot(path, task, seed=s)["score"] for s in seeds[1:]]
+                                   if res.get("error") is None else [0.0] * (len(seeds) - 1))
+        res.update(score=float(np.median(scores)), scores=scores)
+    return res
+
+
 def _evaluate(item: tuple) -> dict:
     """Write one candidate into a scratch folder, score it, delete the folder (worker)."""
-    method, payload, folder, fs_name, task, floating = item
+    method, payload, folder, fs_name, task, floating, seeds = item
     from robovae.generate.writer import write_robot
 
     folder = Path(folder)
@@ -141,7 +162,7 @@ def _evaluate(item: tuple) -> dict:
 
             graph = decoded_fixes(payload, fs_name, floating=floating)[0]
             write_robot(graph, folder, fs_name, name=folder.name, scene=False, stance=True)
-        res = score_robot(folder / "robot.xml", task, seed=0)
+        res = _scored(folder / "robot.xml", task, seeds)
         if res.get("error"):  # the scratch file is gone: name the candidate, not the file
             res["error"] = res["error"].replace(f"{folder / 'robot.xml'}: ", "")
         return res
@@ -164,12 +185,13 @@ class _Run:
     """State of one optimisation folder: settings, log, model, CMA-ES."""
 
     def __init__(self, model: RoboVAE, task: str, budget: int, out: Path, seed: int,
-                 jobs: int, top: int, variance: float, population: int | None = None
-                 ) -> None:
+                 jobs: int, top: int, variance: float, population: int | None = None,
+                 score_sets: int = 1) -> None:
         from cmaes import CMA
 
         self.model, self.task, self.budget, self.out = model, task, budget, out
         self.seed, self.jobs, self.top = seed, jobs, top
+        self.seeds = score_seeds(score_sets)
         self.dim = int(model.hparams.latent_dim)
         self.floating = task != "reach"
         mix = model.sampling_mixture()
@@ -179,7 +201,7 @@ class _Run:
         self.cma = CMA(mean=np.zeros(k), sigma=1.0, seed=seed, population_size=population)
         self.restarts, self._best, self._stall = 0, -math.inf, 0
         self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
-                         "latent_dim": self.dim, "score_seed": 0,
+                         "latent_dim": self.dim, "score_seeds": self.seeds,
                          "score_version": SCORE_VERSION, "cma_start": "prior moments",
                          "cma_variance": variance, "cma_dim": k,
                          "cma_population": self.cma.population_size,
@@ -233,6 +255,8 @@ class _Run:
         old = json.loads(path.read_text())
         settings = dict(old.get("settings", {}))
         settings.setdefault("cma_population", self._default_population)
+        if "score_seed" in settings:  # logs before score sets: one seed
+            settings["score_seeds"] = [settings.pop("score_seed")]
         if settings != self.settings:
             diff = ", ".join(k for k in self.settings if settings.get(k) != self.settings[k])
             raise RobovaeError(f"robovae: {path}: log of another run ({diff} differ); use "
@@ -313,7 +337,7 @@ class _Run:
             return 0
         work = self.out / ".work"
         items = [(m, graphs.get(k, p), str(work / f"{m}_{i:06d}"), self.model.feature_set.name,
-                  self.task, self.floating) for k, (m, i, p) in enumerate(jobs)]
+                  self.task, self.floating, self.seeds) for k, (m, i, p) in enumerate(jobs)]
         cut = {k for k, g in graphs.items() if unfinished(self.model, g)}
         scored = [x for k, x in enumerate(items) if k not in cut]
         results = iter(list(pool.map(_evaluate, scored)) if pool else
@@ -341,9 +365,12 @@ class _Run:
 
 def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
              seed: int = 0, jobs: int = 0, top: int = 10, progress: bool = True,
-             variance: float = 0.95, population: int | None = None) -> dict:
+             variance: float = 0.95, population: int | None = None,
+             score_sets: int = 1) -> dict:
     """Run (or continue) an optimisation (module docstring). ``population``: CMA-ES candidates
     per generation (None: ``4 + floor(3 ln k)``); each round scores as many baseline robots.
+    ``score_sets``: score seeds per robot (:func:`score_seeds`), each evaluation then costs
+    that many scorings for every method.
 
     Returns:
         per method ``evaluations``, ``best`` score, ``best_index``, ``heldout`` (the best
@@ -354,7 +381,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
 
     Raises:
         RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
-            ``population < 2``, bad checkpoint, ``out`` not usable.
+            ``population < 2``, ``score_sets < 1``, bad checkpoint, ``out`` not usable.
     """
     if task not in TASKS:
         raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
@@ -366,11 +393,14 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         raise RobovaeError(f"robovae: --variance must be in (0, 1], got {variance}")
     if population is not None and population < 2:
         raise RobovaeError(f"robovae: --population must be >= 2, got {population}")
+    if score_sets < 1:
+        raise RobovaeError(f"robovae: --score-sets must be >= 1, got {score_sets}")
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
     model = ckpt if isinstance(ckpt, RoboVAE) else load_model(ckpt)
-    run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population)
+    run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
+               score_sets)
     run.load()
     out.mkdir(parents=True, exist_ok=True)
     from tqdm.auto import tqdm

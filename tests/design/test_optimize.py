@@ -24,6 +24,7 @@ from robovae.design.optimize import (
     best_so_far,
     optimize,
     principal_basis,
+    score_seeds,
 )
 from robovae.design.score import reach_score, score_robot, walk_score
 from robovae.envs import WALK_ID
@@ -217,6 +218,7 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
     (["--task", "walk", "--budget", "-3"], "--budget must be > 0"),
     (["--task", "walk", "--budget", "2", "--variance", "0"], "--variance must be in (0, 1]"),
     (["--task", "walk", "--budget", "2", "--population", "1"], "--population must be >= 2"),
+    (["--task", "walk", "--budget", "2", "--score-sets", "0"], "--score-sets must be >= 1"),
 ])
 def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, message):
     _, _, ckpt = trained_nodes
@@ -273,6 +275,49 @@ def test_optimize_population_is_a_setting_of_the_run(trained_nodes, tmp_path, ca
     resumed = json.loads((default / "log.json").read_text())
     assert resumed["evaluations"]["cma"][:3] == dlog["evaluations"]["cma"]
     assert resumed["settings"]["cma_population"] == dlog["settings"]["cma_population"]
+
+
+def test_score_sets_score_each_robot_by_the_median_over_seeds(trained_nodes, tmp_path,
+                                                              capsys):
+    _, _, ckpt = trained_nodes
+    assert score_seeds(1) == [0] and score_seeds(3) == [0, 9, 10]
+    assert not set(score_seeds(20)) & set(HELDOUT_SEEDS)
+    out = tmp_path / "sets"
+    optimize(ckpt, "reach", 2, out, seed=0, jobs=1, top=1, progress=False, score_sets=3)
+    log = json.loads((out / "log.json").read_text())
+    assert log["settings"]["score_seeds"] == [0, 9, 10]
+    varied = 0
+    for m in METHODS:
+        for r in log["evaluations"][m]:
+            if r.get("error") is not None:  # e.g. not a fixed-base arm: 0, not scored again
+                assert r["score"] == 0.0 and r["scores"] == [0.0, 0.0, 0.0]
+                continue
+            path = out / "best" / m / "rank_0" / "robot.xml"
+            if r["index"] == log["heldout"][m][0]["index"]:  # the written best: re-score it
+                assert r["scores"] == [score_robot(path, "reach", seed=s)["score"]
+                                       for s in (0, 9, 10)]
+            assert r["score"] == np.median(r["scores"])
+            varied += len(set(r["scores"])) > 1
+    assert varied  # the seeds draw other configurations: the scores differ
+    # another number of score sets is another run: refused before anything changes
+    before = (out / "log.json").read_text()
+    assert main(["optimize", "--ckpt", str(ckpt), "--task", "reach", "--budget", "2",
+                 "--out", str(out), "--top", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "log of another run (score_seeds differ)" in err and err.count("\n") == 1
+    assert (out / "log.json").read_text() == before
+    # a log written before score sets (one score seed, "score_seed": 0) resumes with one set
+    one = tmp_path / "one"
+    optimize(ckpt, "reach", 1, one, seed=0, jobs=1, top=1, progress=False)
+    old = json.loads((one / "log.json").read_text())
+    assert old["settings"].pop("score_seeds") == [0]
+    old["settings"]["score_seed"] = 0
+    (one / "log.json").write_text(json.dumps(old))
+    optimize(ckpt, "reach", 2, one, seed=0, jobs=1, top=1, progress=False)
+    resumed = json.loads((one / "log.json").read_text())
+    assert resumed["settings"]["score_seeds"] == [0]
+    assert [resumed["evaluations"][m][:1] for m in METHODS] == \
+        [old["evaluations"][m] for m in METHODS]
 
 
 def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes, tmp_path):
