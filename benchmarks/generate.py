@@ -50,7 +50,7 @@ from robovae.generate.symmetry import mirror_limbs
 from robovae.generate.validate import validate_many
 from robovae.generate.writer import write_robot
 
-_VALIDATE_CHUNK = 16  # validate_many's default chunk: one per worker starts them all
+_VALIDATE_CHUNK = 16  # validation work items per worker task: one each starts them all
 
 # The model stack (robovae.model, Lightning) is imported in main(): the spawned workers import
 # this script again and, like robovae generate's, need only the writer, validator and measures.
@@ -173,9 +173,11 @@ def main() -> None:
         # a run as short as validate_many makes with every worker started (one chunk each)
         few = _VALIDATE_CHUNK * args.jobs
         with _Clock(children=True) as vfixed:
-            validate_many(files[:few], jobs=args.jobs, controls=args.validation)
+            validate_many(files[:few], jobs=args.jobs, chunksize=_VALIDATE_CHUNK,
+                          controls=args.validation)
         with _Clock(children=True) as val:
-            validate_many(files, jobs=args.jobs, controls=args.validation)
+            validate_many(files, jobs=args.jobs, chunksize=_VALIDATE_CHUNK,
+                          controls=args.validation)
         rows.append(_row(f"validate the same files alone, {args.jobs} processes", len(files),
                          val))
         rows.append(_row(f"  the same less a run of {few} robots (worker start-up)",
