@@ -42,18 +42,17 @@ import tempfile
 import time
 from pathlib import Path
 
-from robovae.data.procedural import parse_procedural, procedural_graphs
+from robovae.data.tree_arrays import TreeArrays
 from robovae.evaluate.tables import format_table
 from robovae.generate.build import build_robot
-from robovae.generate.rules import floating_base
-from robovae.generate.symmetry import mirror_limbs
 from robovae.generate.validate import validate_many
 from robovae.generate.writer import write_robot
 
 _VALIDATE_CHUNK = 16  # validation work items per worker task: one each starts them all
 
-# The model stack (robovae.model, Lightning) is imported in main(): the spawned workers import
-# this script again and, like robovae generate's, need only the writer, validator and measures.
+# torch, PyG and the model stack are imported in main() and _graphs(): the spawned workers
+# import this script again and, like robovae generate's, load only the writer, the validator
+# and the measures (no torch).
 
 
 def _cpu(children: bool = False) -> float:
@@ -90,11 +89,16 @@ def _row(step: str, n: int, c: _Clock) -> dict:
 
 
 def _graphs(args: argparse.Namespace, model) -> list:
-    """The graphs the workers get: decoded and prepared as generate() prepares them."""
+    """The graphs the workers get (:class:`TreeArrays`): decoded and prepared as generate()
+    prepares them."""
     if model is None:
+        from robovae.data.procedural import parse_procedural, procedural_graphs
+        from robovae.generate.rules import floating_base
+        from robovae.generate.symmetry import mirror_limbs
+
         fs = "paper34"
         graphs = procedural_graphs(parse_procedural(f"n={args.n}"), fs, jobs=1)
-        return [mirror_limbs(floating_base(g, fs)[0], fs)[0] for g in graphs]
+        return [TreeArrays.of(mirror_limbs(floating_base(g, fs)[0], fs)[0]) for g in graphs]
     from robovae.generate.pipeline import prepare_records
     from robovae.model.prior import draw_robots
 

@@ -21,10 +21,12 @@ import math
 import re
 from dataclasses import dataclass, field
 from functools import cache
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
-import torch
-from torch import Tensor
+import numpy as np
+
+if TYPE_CHECKING:  # torch is imported where a tensor is made: worker processes that only
+    from torch import Tensor  # write and simulate robots never load it
 
 Transform = Literal["none", "log", "categorical"]
 
@@ -92,7 +94,8 @@ class FeatureSet:
     node_types: tuple[str, ...]
     features: tuple[Feature, ...]
     _slices: dict[str, slice] = field(init=False, repr=False, compare=False)
-    _type_mask: Tensor = field(init=False, repr=False, compare=False)
+    _type_mask: np.ndarray = field(init=False, repr=False, compare=False)
+    _torch_mask: Tensor | None = field(init=False, repr=False, compare=False, default=None)
 
     def __post_init__(self) -> None:
         slices, start = {}, 0
@@ -104,10 +107,15 @@ class FeatureSet:
             slices[f.key] = slice(start, start + f.width)
             start += f.width
         object.__setattr__(self, "_slices", slices)
-        mask = torch.zeros(len(self.node_types), start, dtype=torch.bool)
+        mask = np.zeros((len(self.node_types), start), dtype=bool)
         for f in self.features:
             mask[self.node_types.index(f.node_type), slices[f.key]] = True
         object.__setattr__(self, "_type_mask", mask)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the cached torch mask: a worker process unpickling a set need not
+        import torch."""
+        return {k: v for k, v in self.__dict__.items() if k != "_torch_mask"}
 
     @property
     def dim(self) -> int:
@@ -137,17 +145,27 @@ class FeatureSet:
     def type_mask(self) -> Tensor:
         """Boolean ``[num_node_types, dim]``: which columns belong to which node type (a
         fresh copy)."""
-        return self._type_mask.clone()
+        import torch
+
+        return torch.from_numpy(self._type_mask.copy())
+
+    def type_mask_array(self) -> np.ndarray:
+        """:meth:`type_mask` as a NumPy array (a fresh copy; no torch needed)."""
+        return self._type_mask.copy()
 
     def mask(self, node_type: Tensor) -> Tensor:
         """Per-node column mask ``[N, dim]`` for a vector of node type ids."""
-        return self._type_mask[node_type]
+        if self._torch_mask is None:
+            object.__setattr__(self, "_torch_mask", self.type_mask())
+        return self._torch_mask[node_type]
 
     def column_attr(self, attr: str) -> Tensor:
         """A per-column tensor of a :class:`Feature` attribute (``low``, ``high``, ``eps``)."""
         vals = []
         for f in self.features:
             vals += [float(getattr(f, attr))] * f.width
+        import torch
+
         return torch.tensor(vals, dtype=torch.float64)
 
     def column_transform(self, transform: Transform) -> Tensor:
@@ -155,10 +173,14 @@ class FeatureSet:
         out = []
         for f in self.features:
             out += [f.transform == transform] * f.width
+        import torch
+
         return torch.tensor(out, dtype=torch.bool)
 
     def empty(self, n: int) -> Tensor:
         """A zero feature matrix for ``n`` nodes."""
+        import torch
+
         return torch.zeros(n, self.dim, dtype=torch.float32)
 
 

@@ -31,6 +31,7 @@ from torch import Tensor
 from torch_geometric.data import Data
 
 from robovae.data.features import FeatureSet, get_feature_set
+from robovae.data.tree_arrays import children
 
 
 class RobotData(Data):
@@ -112,16 +113,6 @@ def _is_preorder(parent: list[int]) -> bool:
             return False
         stack.append(i)
     return True
-
-
-def children(parent: Tensor | Sequence[int]) -> list[list[int]]:
-    """Children lists in canonical order for a pre-order parent vector."""
-    par = parent.tolist() if isinstance(parent, Tensor) else list(parent)
-    out: list[list[int]] = [[] for _ in par]
-    for i, p in enumerate(par):
-        if p >= 0:
-            out[p].append(i)
-    return out
 
 
 def to_networkx(data: Data) -> nx.DiGraph:

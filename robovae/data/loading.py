@@ -233,6 +233,20 @@ def load_robot(path: str | Path) -> LoadedRobot:
     return LoadedRobot(path, spec, model, warnings, missing)
 
 
+def robot_root(model: mujoco.MjModel) -> tuple[int, list[str]]:
+    """The top-level body whose subtree is largest (first declared on ties), and warnings."""
+    top = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
+    size = np.bincount(model.body_rootid, minlength=model.nbody)
+    root = max(top, key=lambda b: (size[b], -b))
+    warnings = []
+    dropped = [b for b in top if b != root]
+    if dropped:
+        names = ", ".join(repr(model.body(b).name or f"body{b}") for b in dropped[:5])
+        more = f" and {len(dropped) - 5} more" if len(dropped) > 5 else ""
+        warnings.append(f"dropped {len(dropped)} other top-level bodies: {names}{more}")
+    return int(root), warnings
+
+
 def robot_name(path: Path, spec: mujoco.MjSpec | None = None) -> str:
     """The robot's name: ``<mujoco model="...">`` / ``<robot name>``, else the file stem."""
     name = (spec.modelname if spec is not None else "") or ""
@@ -243,4 +257,4 @@ def robot_name(path: Path, spec: mujoco.MjSpec | None = None) -> str:
 
 
 __all__ = ["LoadedRobot", "capture_mujoco_warnings", "drop_missing_assets", "element_name",
-           "load_robot", "quiet_forward", "robot_name"]
+           "load_robot", "quiet_forward", "robot_name", "robot_root"]

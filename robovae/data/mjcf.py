@@ -42,26 +42,12 @@ from robovae.data.features import (
     get_feature_set,
 )
 from robovae.data.graph import RobotData, tree_data
-from robovae.data.loading import element_name, load_robot, robot_name
+from robovae.data.loading import element_name, load_robot, robot_name, robot_root
 from robovae.errors import RobotFileError
 
 _MESH = mujoco.mjtGeom.mjGEOM_MESH
 _TRN_JOINT = mujoco.mjtTrn.mjTRN_JOINT
 _PRIMITIVE = np.isin(np.arange(int(mujoco.mjtGeom.mjNGEOMTYPES)), GEOM_TYPE_IDS)  # by type id
-
-
-def robot_root(model: mujoco.MjModel) -> tuple[int, list[str]]:
-    """The top-level body whose subtree is largest (first declared on ties), and warnings."""
-    top = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
-    size = np.bincount(model.body_rootid, minlength=model.nbody)
-    root = max(top, key=lambda b: (size[b], -b))
-    warnings = []
-    dropped = [b for b in top if b != root]
-    if dropped:
-        names = ", ".join(repr(model.body(b).name or f"body{b}") for b in dropped[:5])
-        more = f" and {len(dropped) - 5} more" if len(dropped) > 5 else ""
-        warnings.append(f"dropped {len(dropped)} other top-level bodies: {names}{more}")
-    return int(root), warnings
 
 
 def _first_geoms(model: mujoco.MjModel, bodies: np.ndarray) -> np.ndarray:

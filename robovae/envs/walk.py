@@ -9,7 +9,7 @@ load) and turned into a scene with ``mujoco.MjSpec`` edits, never XML strings:
   added (:func:`robovae.evaluate.scene.add_floor`) at the robot's lowest point in its initial
   pose (below); a light is added when the model has none.
 - **root**: the robot is the top-level body with the largest subtree
-  (:func:`robovae.data.mjcf.robot_root`). A root body **without any joint** (welded to the world,
+  (:func:`robovae.data.loading.robot_root`). A root body **without any joint** (welded to the world,
   e.g. an arm) gets a free joint when ``free_base`` (default): it then falls onto the floor and
   can walk if its body allows (its keyframes get the free joint's coordinates, the pose as
   written, in their place). With ``free_base=False`` it stays fixed: the root never moves, so
@@ -76,8 +76,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.mujoco.mujoco_env import MujocoEnv
 
-from robovae.data.loading import capture_mujoco_warnings, load_robot, quiet_forward
-from robovae.data.mjcf import robot_root
+from robovae.data.loading import capture_mujoco_warnings, load_robot, quiet_forward, robot_root
 from robovae.errors import RobovaeError
 from robovae.evaluate.camera import robot_bounds
 from robovae.evaluate.quality.locomotion import actuated_base

@@ -1,6 +1,6 @@
 """Camera framing: a free camera that shows the whole robot.
 
-The robot is the top-level body with the largest subtree (:func:`robovae.data.mjcf.robot_root`);
+The robot is the top-level body with the largest subtree (:func:`robovae.data.loading.robot_root`);
 props such as balls and targets are left out. Its extent is the set of corners of its geoms'
 bounding boxes (planes and height fields excluded) and its body positions, in the world frame of
 ``data`` (:func:`robot_points`, :func:`robot_bounds`).
@@ -22,7 +22,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import robot_root
+from robovae.data.loading import robot_root
 
 __all__ = ["DEFAULT_AZIMUTH", "DEFAULT_ELEVATION", "auto_camera", "camera_axes", "mjv_camera",
            "resolve_camera", "robot_bounds", "robot_points"]
@@ -66,7 +66,7 @@ def robot_bounds(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray
     (planes and height fields excluded) and body positions of ``data``.
 
     The robot is the top-level body with the largest subtree, as in the robot graph
-    (:func:`robovae.data.mjcf.robot_root`): props such as balls and targets are left out.
+    (:func:`robovae.data.loading.robot_root`): props such as balls and targets are left out.
     """
     pts = robot_points(model, data)
     return pts.min(axis=0), pts.max(axis=0)

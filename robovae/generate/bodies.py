@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from robovae.data.features import GEOM, JOINT, JOINT_TYPES, LINK, FeatureSet
-from robovae.data.graph import RobotData
+from robovae.data.tree_arrays import RobotTree
 from robovae.generate.graph_view import GraphView, as_feature_set
 
 __all__ = ["FREE_AXIS_COS", "RANGE_ZERO", "free_root_allowed", "joint_types", "link_structure",
@@ -97,7 +97,7 @@ def trunk(types: list[int], kids: list[list[int]]) -> int:
     return i
 
 
-def joint_types(data: RobotData, feature_set: str | FeatureSet) -> list[str]:
+def joint_types(data: RobotTree, feature_set: str | FeatureSet) -> list[str]:
     """MuJoCo joint type name (``free``/``ball``/``slide``/``hinge``) of every node, ``""`` for
     non-joint nodes: from the ``joint.type`` one-hot when the set has it, else inferred
     (module docstring)."""

@@ -2,8 +2,10 @@
 
 :class:`GraphView` copies ``data.x`` to a float64 NumPy array (physical units, the columns of a
 :class:`~robovae.data.features.FeatureSet`) and gives access by registry key
-(``view.get(i, "link.mass")``); :meth:`GraphView.to_data` turns it back into a graph whose
-columns a node type does not own are exactly 0.
+(``view.get(i, "link.mass")``); :meth:`GraphView.to_data` turns it back into a graph of the
+kind it came from (a PyG graph or :class:`~robovae.data.tree_arrays.TreeArrays`) whose columns a
+node type does not own are exactly 0. Nothing here imports torch (worker processes that write
+robots from ``TreeArrays`` never load it).
 
 Graphs store float32. A value a rule raises to a floor or clips to a bound must still satisfy
 the bound after that storage: :func:`ceil32` and :func:`floor32` give the nearest float32 on the
@@ -15,10 +17,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import torch
 
 from robovae.data.features import Feature, FeatureSet, get_feature_set
-from robovae.data.graph import RobotData, children
+from robovae.data.tree_arrays import RobotTree, TreeArrays, children, feature_values
 
 __all__ = ["GraphView", "as_feature_set", "ceil32", "floor32", "node_mask", "norm"]
 
@@ -37,10 +38,10 @@ _TYPE_MASKS: dict[tuple[str, int], np.ndarray] = {}
 
 def node_mask(fs: FeatureSet, types) -> np.ndarray:
     """``fs.mask(types)`` as a NumPy ``[N, dim]`` bool array, from a per-set table made once
-    (indexing a torch tensor per robot costs more than the rest of a rule)."""
+    (indexing the set's mask per robot costs more than the rest of a rule)."""
     key = (fs.name, fs.dim)
     if key not in _TYPE_MASKS:
-        _TYPE_MASKS[key] = fs.type_mask().numpy()
+        _TYPE_MASKS[key] = fs.type_mask_array()
     return _TYPE_MASKS[key][np.asarray(types, dtype=np.int64)]
 
 
@@ -56,9 +57,9 @@ class GraphView:
         mask: ``[N, fs.dim]`` bool, the columns each node's type owns.
     """
 
-    def __init__(self, data: RobotData, fs: FeatureSet) -> None:
+    def __init__(self, data: RobotTree, fs: FeatureSet) -> None:
         self.fs = fs
-        self.x = data.x.detach().cpu().double().numpy().copy()
+        self.x = feature_values(data)
         self.types = data.node_type.tolist()
         self.parent = data.parent.tolist()
         self.kids = children(self.parent)
@@ -85,12 +86,16 @@ class GraphView:
         """The registry entry of ``key`` (its range, transform, width)."""
         return next(f for f in self.fs.features if f.key == key)
 
-    def to_data(self, data: RobotData) -> RobotData:
-        """A clone of ``data`` with ``x`` from the view as float32; columns a node type does not
-        own are set to 0."""
+    def to_data(self, data: RobotTree) -> RobotTree:
+        """A copy of ``data`` (same kind) with ``x`` from the view as float32; columns a node
+        type does not own are set to 0."""
+        x = np.where(self.mask, self.x.astype(np.float32), np.float32(0))
+        if isinstance(data, TreeArrays):
+            return data.with_x(x)
+        import torch  # a PyG graph: torch is loaded already
+
         out = data.clone()
-        x = torch.from_numpy(self.x).to(torch.float32)
-        out.x = torch.where(torch.from_numpy(self.mask), x, torch.zeros((), dtype=torch.float32))
+        out.x = torch.from_numpy(x)
         return out
 
 

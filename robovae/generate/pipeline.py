@@ -38,6 +38,7 @@ from typing import TextIO
 import torch
 
 from robovae.data.graph import RobotData
+from robovae.data.tree_arrays import TreeArrays
 from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality.report import summarize as quality_summary
@@ -350,8 +351,8 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                    latent=[round(float(v), 6) for v in zi], draw=int(k), rules=fixes,
                    path=f"robot_{i:06d}/robot.xml")
         records.append(rec)
-        items.append((g.cpu(), out / f"robot_{i:06d}", fs.name, name, scene, validate, quality,
-                      controls, stance))
+        items.append((TreeArrays.of(g), out / f"robot_{i:06d}", fs.name, name, scene, validate,
+                      quality, controls, stance))
     return records, items
 
 

@@ -32,14 +32,14 @@ from collections.abc import Callable
 import numpy as np
 
 from robovae.data.features import JOINT_TYPES, FeatureSet
-from robovae.data.graph import RobotData
+from robovae.data.tree_arrays import RobotTree
 from robovae.generate import rules_geometry, rules_joints, rules_mass, rules_values
 from robovae.generate.bodies import free_root_allowed
 from robovae.generate.graph_view import GraphView, as_feature_set
 
 __all__ = ["RULES", "Rule", "apply_rules", "check_rules", "floating_base"]
 
-Rule = Callable[[RobotData, "str | FeatureSet"], tuple[RobotData, bool]]
+Rule = Callable[[RobotTree, "str | FeatureSet"], tuple[RobotTree, bool]]
 
 _IMPL: dict[str, Callable[[GraphView], None]] = {
     "finite": rules_values.finite,
@@ -59,7 +59,7 @@ _IMPL: dict[str, Callable[[GraphView], None]] = {
 }
 
 
-def _view(data: RobotData, fs: FeatureSet) -> GraphView:
+def _view(data: RobotTree, fs: FeatureSet) -> GraphView:
     if "link" not in fs.node_types or "joint" not in fs.node_types:
         raise ValueError(f"rules need a robot feature set (link and joint nodes), not {fs.name}")
     if data.x.shape[1] != fs.dim:
@@ -76,8 +76,8 @@ def _changed(before: np.ndarray, after: np.ndarray) -> bool:
 def _make_rule(name: str) -> Rule:
     impl = _IMPL[name]
 
-    def rule(data: RobotData, feature_set: str | FeatureSet = "paper34"
-             ) -> tuple[RobotData, bool]:
+    def rule(data: RobotTree, feature_set: str | FeatureSet = "paper34"
+             ) -> tuple[RobotTree, bool]:
         v = _view(data, as_feature_set(feature_set))
         before = v.x.copy()
         impl(v)
@@ -94,8 +94,8 @@ def _make_rule(name: str) -> Rule:
 RULES: dict[str, Rule] = {name: _make_rule(name) for name in _IMPL}
 
 
-def apply_rules(data: RobotData, feature_set: str | FeatureSet = "paper34"
-                ) -> tuple[RobotData, list[str]]:
+def apply_rules(data: RobotTree, feature_set: str | FeatureSet = "paper34"
+                ) -> tuple[RobotTree, list[str]]:
     """Run every rule of :data:`RULES` in order on a graph in physical units.
 
     Args:
@@ -119,13 +119,13 @@ def apply_rules(data: RobotData, feature_set: str | FeatureSet = "paper34"
     return v.to_data(data), fired
 
 
-def check_rules(data: RobotData, feature_set: str | FeatureSet = "paper34") -> list[str]:
+def check_rules(data: RobotTree, feature_set: str | FeatureSet = "paper34") -> list[str]:
     """Names of the rules that would change ``data`` (nothing is modified)."""
     return apply_rules(data, feature_set)[1]
 
 
-def floating_base(data: RobotData, feature_set: str | FeatureSet = "paper34"
-                  ) -> tuple[RobotData, bool]:
+def floating_base(data: RobotTree, feature_set: str | FeatureSet = "paper34"
+                  ) -> tuple[RobotTree, bool]:
     """Give a robot a floating base: when the root node is a joint that is the only joint above
     the root link (:func:`~robovae.generate.bodies.free_root_allowed`), set its features to
     those MuJoCo gives a free joint — range ``(0, 0)``, axis ``+z``, position 0, no damping,

@@ -59,7 +59,7 @@ import numpy as np
 
 from robovae.data.box_axes import axes_to_quats
 from robovae.data.features import GEOM, GEOM_TYPE_IDS, GEOM_TYPES, JOINT, LINK, FeatureSet
-from robovae.data.graph import RobotData
+from robovae.data.tree_arrays import RobotTree, feature_values
 from robovae.generate.bodies import joint_types, link_structure
 from robovae.generate.link_geometry import LinkFrame, link_geoms, thickness
 from robovae.generate.mjcf_numbers import (
@@ -112,12 +112,12 @@ class SpecBuilder:
         free_bodies: top-level bodies holding a free joint, after :meth:`build`.
     """
 
-    def __init__(self, data: RobotData, fs: FeatureSet, name: str, actuators: ActuatorMode,
+    def __init__(self, data: RobotTree, fs: FeatureSet, name: str, actuators: ActuatorMode,
                  self_collision: bool) -> None:
         self.fs, self.name = fs, name
         # every value as MJCF output writes it, feature by feature, in one pass
         starts = np.array([fs.slice(f.key).start for f in fs.features])
-        self.x = mjcf_round_groups(data.x.detach().cpu().double().numpy(), starts)
+        self.x = mjcf_round_groups(feature_values(data), starts)
         self.types = data.node_type.tolist()
         self.parent = data.parent.tolist()
         self.keys = {f.key for f in fs.features}

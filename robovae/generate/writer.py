@@ -44,9 +44,8 @@ import mujoco
 import numpy as np
 
 from robovae.data.features import FeatureSet
-from robovae.data.graph import RobotData
-from robovae.data.loading import capture_mujoco_warnings
-from robovae.data.mjcf import robot_root
+from robovae.data.loading import capture_mujoco_warnings, robot_root
+from robovae.data.tree_arrays import RobotTree
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
@@ -114,7 +113,7 @@ def _lowest_point(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> f
     return float(z.min())
 
 
-def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: ActuatorMode,
+def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: ActuatorMode,
            clearance: float | None, self_collision: bool, stance: bool = False
            ) -> tuple[mujoco.MjSpec, mujoco.MjModel, list[str]]:
     """The spec (stance rules and floor placement applied), a model compiled before the
@@ -147,7 +146,7 @@ def _build(data: RobotData, fs: FeatureSet, name: str, rules: bool, actuators: A
 
 
 def graph_to_spec(
-    data: RobotData,
+    data: RobotTree,
     feature_set: str | FeatureSet = "paper34",
     name: str = "robot",
     rules: bool = True,
@@ -241,7 +240,7 @@ def _atomic_write(path: Path, text: str, durable: bool = True) -> None:
 
 
 def write_robot(
-    data: RobotData,
+    data: RobotTree,
     out_dir: str | os.PathLike,
     feature_set: str | FeatureSet = "paper34",
     name: str = "robot",

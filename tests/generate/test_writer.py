@@ -415,3 +415,55 @@ def test_kinematic_round_trip_keeps_feet_and_motors(seed):
         assert back.geom_type[first] != mujoco.mjtGeom.mjGEOM_SPHERE
         np.testing.assert_allclose(np.sort(back.geom_aabb[first, 3:])[-1],
                                    model.geom_size[sole].max(), atol=0.005)
+
+
+# --- the writer's worker processes: graphs as NumPy arrays, no torch -------------------------
+
+
+@pytest.mark.parametrize("fs", ["paper34", "full"])
+def test_tree_arrays_write_the_same_robot(fs, tmp_path):
+    """A graph given as :class:`TreeArrays` is written byte for byte as the PyG graph is (a real
+    robot and random trees, which most rules repair); the rules return the kind they got."""
+    from robovae.data.tree_arrays import TreeArrays
+
+    rng = np.random.default_rng(3)
+    graphs = [quadruped(fs)] + [random_tree(rng, fs, int(rng.integers(2, 30))) for _ in range(8)]
+    for k, g in enumerate(graphs):
+        arrays = TreeArrays.of(g)
+        assert arrays.num_nodes == g.num_nodes and arrays.x.dtype == np.float32
+        a = write_robot(g, tmp_path / f"g{k}", fs, name="r", stance=True)
+        b = write_robot(arrays, tmp_path / f"a{k}", fs, name="r", stance=True)
+        for f in ("robot.xml", "scene.xml"):
+            assert (tmp_path / f"g{k}" / f).read_bytes() == (tmp_path / f"a{k}" / f).read_bytes()
+        assert a.rules == b.rules and a.counts == b.counts
+        repaired, fired = apply_rules(arrays, fs)
+        assert isinstance(repaired, TreeArrays) and fired == apply_rules(g, fs)[1]
+        np.testing.assert_array_equal(repaired.x, apply_rules(g, fs)[0].x.numpy())
+
+
+def test_a_worker_writes_validates_and_measures_without_torch(tmp_path):
+    """What a worker process of ``robovae generate`` does with one robot (write, validate,
+    measure: :func:`~robovae.generate.build.build_robot`), in a fresh interpreter given the
+    graph as pickled :class:`TreeArrays`: the robot is valid and measured, and neither torch
+    nor PyG is ever imported."""
+    import pickle
+    import subprocess
+    import sys
+
+    from robovae.data.tree_arrays import TreeArrays
+
+    item = (TreeArrays.of(quadruped("paper34")), tmp_path / "robot_0", "paper34", "q", True,
+            True, True, "held", True)
+    (tmp_path / "item.pkl").write_bytes(pickle.dumps(item))
+    script = (
+        "import pickle, sys, json\n"
+        "from robovae.generate.build import build_robot\n"
+        f"rec = build_robot(pickle.loads(open({str(tmp_path / 'item.pkl')!r}, 'rb').read()))\n"
+        "print(json.dumps({'valid': rec['valid'], 'quality': 'quality' in rec,\n"
+        "  'error': rec.get('quality', {}).get('error'),\n"
+        "  'loaded': [m for m in ('torch', 'torch_geometric') if m in sys.modules]}))\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True, cwd=REPO)
+    rec = __import__("json").loads(out.stdout.strip().splitlines()[-1])
+    assert rec == {"valid": True, "quality": True, "error": None, "loaded": []}
+    assert mujoco.MjModel.from_xml_path(str(tmp_path / "robot_0" / "robot.xml")).nbody > 2

@@ -4,7 +4,7 @@ At ``qpos0`` (``mj_forward``), with ``L`` the robot's extent (diagonal of its bo
 :func:`~robovae.evaluate.quality.stage.extent`; MuJoCo's ``stat.extent`` would count floors and
 ``<statistic>`` overrides: 85 m for dm_control's quadruped):
 
-- a non-root body of the robot (the subtree of :func:`~robovae.data.mjcf.robot_root`) that has
+- a non-root body of the robot (the subtree of :func:`~robovae.data.loading.robot_root`) that has
   geoms is **detached** when none of its geoms comes within ``gap · L`` (5 %) of a geom of its
   parent body, or of its nearest ancestor with geoms when the parent has none (a body that
   only carries a joint is not a gap). Distances are ``mujoco.mj_geomDistance`` (signed:
@@ -25,8 +25,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from robovae.data.loading import quiet_forward
-from robovae.data.mjcf import robot_root
+from robovae.data.loading import quiet_forward, robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled, extent
 
 __all__ = ["AttachResult", "attachment"]

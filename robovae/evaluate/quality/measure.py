@@ -33,9 +33,7 @@ from pathlib import Path
 
 import mujoco
 
-from robovae.data.mjcf import model_to_graph
 from robovae.data.workers import process_pool
-from robovae.evaluate.descriptors import VECTOR_DESCRIPTORS, descriptors
 from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.quality.locomotion import gait
 from robovae.evaluate.quality.stage import Robot, Stage, prepare, stage
@@ -96,7 +94,11 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
         s = _timed(out, "standing", standing, st, **kw)
         out.update(floating=s.floating, stands=s.stands, fell_at=s.fell_at,
                    stand_tilt=s.max_tilt)
-        if describe:
+        if describe:  # graph descriptors need the PyG graph (torch): imported only here, so
+            # that generation's workers (robot_quality) never load torch
+            from robovae.data.mjcf import model_to_graph
+            from robovae.evaluate.descriptors import VECTOR_DESCRIPTORS, descriptors
+
             d = _timed(out, "descriptors", lambda: descriptors(model_to_graph(model)))
             out.update({f"d_{k}": d[k] for k in VECTOR_DESCRIPTORS})
         if locomotion:

@@ -30,8 +30,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from robovae.data.loading import capture_mujoco_warnings, load_robot, quiet_forward
-from robovae.data.mjcf import robot_root
+from robovae.data.loading import capture_mujoco_warnings, load_robot, quiet_forward, robot_root
 from robovae.errors import RobovaeError
 
 # plain ints: MjModel arrays hold ints, which do not compare equal to the pybind enums
@@ -57,7 +56,7 @@ class Stage:
     """A compiled robot on a floor (module docstring)."""
 
     model: mujoco.MjModel
-    root: int  # root body id (robovae.data.mjcf.robot_root)
+    root: int  # root body id (robovae.data.loading.robot_root)
     floor_z: float  # height of the floor under the robot, m
     extent: float  # diagonal of the robot's bounding box at qpos0, m
     free: bool  # the root body has a free joint

@@ -1,6 +1,6 @@
 """Body plan of a compiled robot: counts, limbs, and whether the limbs come in mirrored pairs.
 
-The robot is the subtree of its root body (:func:`~robovae.data.mjcf.robot_root`). A **limb**
+The robot is the subtree of its root body (:func:`~robovae.data.loading.robot_root`). A **limb**
 is a child subtree of the root body that holds at least one joint. At ``qpos0``:
 
 - a limb's **topology** is its canonical tree signature: each body is written as its number of
@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from robovae.data.mjcf import robot_root
+from robovae.data.loading import robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled
 
 __all__ = ["Anatomy", "anatomy", "mirrored"]

@@ -1,0 +1,97 @@
+"""A robot graph as NumPy arrays: what the writer's worker processes receive.
+
+The MJCF writer, its repair rules and the validator read three fields of a robot graph
+(:mod:`robovae.data.graph`): ``x`` ``[N, d]`` physical feature values, ``node_type`` ``[N]``
+and ``parent`` ``[N]`` (pre-order, root ``-1``). :class:`TreeArrays` holds them as NumPy
+arrays. A worker process given one unpickles it without importing torch and PyG, which a
+PyG ``Data`` would need: about 2.5 s of CPU per spawned worker, as much as writing and
+validating some 70 robots (docs/generation.md, "Workers without torch").
+
+Every function of :mod:`robovae.generate` that takes a robot graph takes either; it returns
+the kind it was given (:meth:`TreeArrays.with_x`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any, Protocol
+
+import numpy as np
+
+__all__ = ["RobotTree", "TreeArrays", "children", "feature_values"]
+
+
+@dataclass(frozen=True, eq=False)
+class TreeArrays:
+    """The fields of a robot graph the writer reads, as NumPy arrays.
+
+    Attributes:
+        x: ``[N, d]`` float32 physical feature values (the columns of a
+            :class:`~robovae.data.features.FeatureSet`).
+        node_type: ``[N]`` int64 node type ids.
+        parent: ``[N]`` int64 parent index per node (``-1`` for the root), pre-order.
+        name: robot name.
+    """
+
+    x: np.ndarray
+    node_type: np.ndarray
+    parent: np.ndarray
+    name: str = ""
+
+    @classmethod
+    def of(cls, graph: Any) -> TreeArrays:
+        """The arrays of a robot graph (a PyG ``Data`` or a :class:`TreeArrays`)."""
+        if isinstance(graph, TreeArrays):
+            return graph
+        return cls(x=_numpy(graph.x).astype(np.float32, copy=True),
+                   node_type=_numpy(graph.node_type).astype(np.int64, copy=True),
+                   parent=_numpy(graph.parent).astype(np.int64, copy=True),
+                   name=str(getattr(graph, "name", "") or ""))
+
+    @property
+    def num_nodes(self) -> int:
+        """Number of nodes ``N``."""
+        return int(self.x.shape[0])
+
+    def with_x(self, x: np.ndarray) -> TreeArrays:
+        """A copy with feature values ``x`` (stored as float32), the tree unchanged."""
+        return replace(self, x=np.asarray(x, dtype=np.float32))
+
+
+class RobotTree(Protocol):
+    """A robot graph as the writer takes it: a PyG graph (:class:`~robovae.data.graph.
+    RobotData`) or its :class:`TreeArrays`; ``x``, ``node_type`` and ``parent`` are tensors or
+    NumPy arrays."""
+
+    @property
+    def x(self) -> Any: ...
+
+    @property
+    def node_type(self) -> Any: ...
+
+    @property
+    def parent(self) -> Any: ...
+
+
+def _numpy(a: Any) -> np.ndarray:
+    """A NumPy view of a NumPy array or a (CPU or device) torch tensor."""
+    if isinstance(a, np.ndarray):
+        return a
+    return a.detach().cpu().numpy()
+
+
+def feature_values(graph: RobotTree) -> np.ndarray:
+    """A float64 copy of ``graph.x`` (NaN and Inf kept)."""
+    return _numpy(graph.x).astype(np.float64)
+
+
+def children(parent: Sequence[int] | Any) -> list[list[int]]:
+    """Children lists in canonical order for a pre-order parent vector (a list, a NumPy array
+    or a tensor)."""
+    par = parent.tolist() if hasattr(parent, "tolist") else list(parent)
+    out: list[list[int]] = [[] for _ in par]
+    for i, p in enumerate(par):
+        if p >= 0:
+            out[p].append(i)
+    return out
