@@ -2,8 +2,9 @@
 process of :mod:`robovae.generate.pipeline` does for each robot.
 
 Kept apart from the pipeline so that the worker processes import only the writer, the
-validator and the quality measures (not the model and its training stack): a worker starts
-about 1.5 s of CPU sooner.
+validator and the quality measures, none of which imports torch: the pipeline sends each graph
+as :class:`~robovae.data.tree_arrays.TreeArrays`, and a worker starts on 0.6 s of CPU (3.9 s
+with torch and PyG).
 """
 
 from __future__ import annotations
