@@ -109,7 +109,7 @@ RESTART_AFTER = 10
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
 #: (:func:`robovae.generate.fixes.decoded_fixes`), then the writer with its stance rules.
-WRITER = "floating base (walk, stand), mirrored limbs, stance rules"
+WRITER = "floating base (walk, stand), mirrored limbs, stance rules, spun discs as cylinders"
 
 
 def procedural_seed(seed: int, index: int) -> int:

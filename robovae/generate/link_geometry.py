@@ -18,7 +18,11 @@ the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT
    to its first child's anchor instead (a limb segment joins its two joints whatever the
    decoded box's orientation says); a leaf link (no child link: a foot, a hand, a head) keeps
    its box, whatever its proportions. A foot keeps its sole and a head its volume, where
-   ``link.size`` alone holds only the first geom.
+   ``link.size`` alone holds only the first geom. A box that is round in its plane
+   (``a <= 1.2 b``) and spun about its short axis by one of the link's hinges (the axis within
+   15° of it, the box's centre within a quarter of ``(a + b) / 2`` of the axis line) is a
+   **disc**: a wheel or a turntable, written as a cylinder of radius ``(a + b) / 2`` and
+   half-height ``e`` about that axis (a square box there would roll on its corners).
 
    - root link (no link above it): at its origin, unrotated;
    - capsule / box: its axis (capsule axis, box z) points from ``a`` at the first child's
@@ -42,7 +46,8 @@ reaches it), and so does its parent's: the two touch at ``t_c``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -59,6 +64,10 @@ COVER_TOL = 0.25
 MIN_BRIDGE = 0.05
 #: Smallest radius of a capsule that fills a collision box (m): a flat box has no thickness.
 MIN_RADIUS = 1e-3
+#: A disc's hinge axis is within this angle's cosine (15°) of the box's short axis ...
+DISC_COS = float(np.cos(np.radians(15.0)))
+#: ... and the box's centre within this share of the disc's radius of the hinge's axis line.
+DISC_OFFSET = 0.25
 _AXES = np.eye(3)
 
 
@@ -85,6 +94,7 @@ class LinkFrame:
         children: ``[(t_c, r_c)]``: every child link's anchor and thickness.
         root: no link above it.
         box: ``(centre, quat, half-sizes)`` of its collision box, in sets that have one.
+        hinges: ``[(position, axis)]`` of the hinge joints in its body.
     """
 
     size: np.ndarray
@@ -93,6 +103,7 @@ class LinkFrame:
     children: list[tuple[np.ndarray, float]]
     root: bool
     box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    hinges: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 def _n_size(size: np.ndarray) -> int:
@@ -153,6 +164,29 @@ def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> Ge
     return GeomPlan("box", np.maximum(half, 1e-4), center.copy(), q)
 
 
+def _disc(f: LinkFrame) -> GeomPlan | None:
+    """The cylinder of a link whose collision box is a disc spun by one of its hinges (module
+    docstring), else None."""
+    center, quat, half = f.box
+    h = half.tolist()
+    order = sorted(range(3), key=lambda k: -h[k])
+    a, b, e = (h[k] for k in order)
+    if a > 1.2 * b:
+        return None
+    n = np.zeros(3)
+    mujoco.mju_rotVecQuat(n, _AXES[order[2]], quat / (norm(quat) or 1.0))
+    r = 0.5 * (a + b)
+    for pos, axis in f.hinges:
+        u = _unit(np.asarray(axis, dtype=float))
+        if u is None or abs(float(n @ u)) < DISC_COS:
+            continue
+        off = center - pos
+        if norm(off - float(off @ u) * u) <= DISC_OFFSET * r:
+            return GeomPlan("cylinder", np.array([max(r, 1e-4), max(e, 1e-4), 0.0]),
+                            center.copy(), _quat_z_to(n))
+    return None
+
+
 def _box_geom(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> GeomPlan:
     """The collision box itself as a geom."""
     return GeomPlan("box", np.maximum(half, 1e-4), center.copy(), quat / (norm(quat) or 1.0))
@@ -162,6 +196,8 @@ def _primitive(f: LinkFrame, fill: GeomPlan | None) -> GeomPlan:
     """The link's first geom; ``fill``: :func:`_box_fill` of its box."""
     if fill is not None:
         prim = fill
+        if prim.type == "box" and f.hinges:
+            return _disc(f) or prim
         if prim.type == "capsule" and not f.root and not f.children:  # a sole stays flat
             return _box_geom(*f.box)
         if prim.type == "capsule" and not f.root and f.children:  # a limb segment: joined
@@ -212,6 +248,10 @@ def _gap(g: GeomPlan, p: np.ndarray, rot_t: np.ndarray | None = None) -> float:
         h = float(g.size[1])
         local[2] -= min(max(float(local[2]), -h), h)
         return norm(local) - float(g.size[0])
+    if g.type == "cylinder":  # a box in (radial, axial) distance
+        out = np.array([math.hypot(local[0], local[1]) - float(g.size[0]),
+                        abs(float(local[2])) - float(g.size[1])])
+        return norm(np.maximum(out, 0.0)) + min(float(out.max()), 0.0)
     out = np.abs(local) - g.size
     return norm(np.maximum(out, 0.0)) + min(float(out.max()), 0.0)
 

@@ -90,7 +90,7 @@ _DOFS = {"free": 6, "ball": 3, "slide": 1, "hinge": 1}
 _TRUE, _FALSE = mujoco.mjtLimited.mjLIMITED_TRUE, mujoco.mjtLimited.mjLIMITED_FALSE
 _SPHERE = mujoco.mjtGeom.mjGEOM_SPHERE
 _PRIMITIVE = {"sphere": _SPHERE, "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
-              "box": mujoco.mjtGeom.mjGEOM_BOX}
+              "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "box": mujoco.mjtGeom.mjGEOM_BOX}
 _GEOM_SIZES = tuple(GEOM_SIZE_COMPONENTS[t] for t in GEOM_TYPES)
 _GEOM_GROUPS = np.array([0, 3, 6])  # size, pos, quat of a geom plan
 _LINK_RGBA = [0.55, 0.6, 0.7, 1.0]
@@ -257,8 +257,10 @@ class SpecBuilder:
             t += np.array(self.vec(c, "link.pos"))
             children.append((t, self._link_shape(c)[2]))
         size, box, _ = self._link_shape(i)
+        hinges = [(np.array(self.vec(j, "joint.pos")), np.array(self.vec(j, "joint.axis")))
+                  for j in self.chain[i] if self.jtypes[j] == "hinge"] if box is not None else []
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
-                         self.anc[i] < 0, box)
+                         self.anc[i] < 0, box, hinges)
 
     def _invented_geoms(self, bodies: dict[int, mujoco.MjsBody], kids: dict[int, list[int]]
                         ) -> None:

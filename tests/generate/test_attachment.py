@@ -142,3 +142,71 @@ def test_link_geometry_reaches_its_anchor_and_its_children(seed):
     points = [t for t, _ in children] + ([] if frame.root else [frame.anchor])
     for p in points:
         assert min(_gap(g, p) for g in geoms) <= COVER_TOL * r + 1e-9
+
+
+# --- discs: wheels and turntables --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", [0, 2])  # two drive wheels + casters; four wheels
+def test_wheels_come_back_round(seed):
+    """A procedural mobile manipulator through its ``kinematic`` graph and the writer: each drive
+    wheel (a cylinder spinning about y) is written as a cylinder of the wheel's radius and
+    half-width about its hinge axis, not as a square box, and the robot stays in one piece."""
+    model = procedural_spec(seed, "mobile_manipulator").compile()
+    wheels = [b for b in range(model.nbody) if model.body(b).name.startswith("wheel")]
+    radius = {round(float(model.geom_size[g, 0]), 4) for b in wheels
+              for g in range(model.ngeom) if model.geom_bodyid[g] == b}
+    spec, _ = graph_to_spec(model_to_graph(model, "kinematic"), "kinematic")
+    back = spec.compile()
+    data = mujoco.MjData(back)
+    mujoco.mj_forward(back, data)
+    cylinders = [g for g in range(back.ngeom)
+                 if back.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER]
+    assert len(cylinders) == len(wheels)
+    for g in cylinders:
+        body = back.geom_bodyid[g]
+        assert round(float(back.geom_size[g, 0]), 4) in radius
+        hinge = back.body_jntadr[body]
+        assert back.jnt_type[hinge] == mujoco.mjtJoint.mjJNT_HINGE
+        cyl_axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
+        assert abs(float(cyl_axis @ data.xaxis[hinge])) > 0.999
+    assert attachment(back).all_attached
+
+
+def _disc_frame(half, axis, centre=(0.0, 0.0, 0.0)):
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    box = (np.array(centre, dtype=float), quat, np.array(half, dtype=float))
+    return LinkFrame(np.zeros(3), np.zeros(3), np.zeros(3), [], root=False, box=box,
+                     hinges=[(np.zeros(3), np.array(axis, dtype=float))])
+
+
+@pytest.mark.parametrize("half, axis, centre, kind", [
+    ((0.1, 0.1, 0.02), (0, 0, 1), (0, 0, 0), "cylinder"),     # a wheel about its short axis
+    ((0.1, 0.09, 0.02), (0, 0.1, 1), (0.01, 0, 0), "cylinder"),  # round enough, 6° off
+    ((0.1, 0.1, 0.02), (1, 0, 0), (0, 0, 0), "box"),          # spun about a long axis: a flap
+    ((0.1, 0.1, 0.02), (0, 0, 1), (0.05, 0, 0), "box"),       # off its centre: a cam
+    ((0.1, 0.07, 0.02), (0, 0, 1), (0, 0, 0), "box"),         # not round in its plane
+])
+def test_a_disc_is_round_in_its_plane_and_spun_about_its_centre(half, axis, centre, kind):
+    prim = link_geoms(_disc_frame(half, axis, centre))[0]
+    assert prim.type == kind
+    if kind == "cylinder":
+        assert np.allclose(prim.size[:2], [0.5 * (half[0] + half[1]), half[2]])
+
+
+def test_cylinder_gap_matches_mujoco():
+    """:func:`_gap` of a cylinder agrees with MuJoCo's signed distance to a small sphere."""
+    plan = link_geoms(_disc_frame((0.1, 0.1, 0.03), (0, 0, 1)))[0]
+    spec = mujoco.MjSpec()
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=plan.size,
+                            pos=plan.pos, quat=plan.quat)
+    probe = spec.worldbody.add_body(name="probe", mocap=True)
+    probe.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[1e-4, 0, 0])
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(0)
+    for p in rng.uniform(-0.2, 0.2, (40, 3)):
+        data.mocap_pos[0] = p
+        mujoco.mj_forward(model, data)
+        d = mujoco.mj_geomDistance(model, data, 0, 1, 1.0, None) + 1e-4
+        assert abs(d - _gap(plan, p)) < 2e-3
