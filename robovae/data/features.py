@@ -149,9 +149,9 @@ class FeatureSet:
 
         return torch.from_numpy(self._type_mask.copy())
 
-    def type_mask_array(self) -> np.ndarray:
-        """:meth:`type_mask` as a NumPy array (a fresh copy; no torch needed)."""
-        return self._type_mask.copy()
+    def mask_array(self, node_type) -> np.ndarray:
+        """:meth:`mask` as a NumPy array, for node type ids in any sequence (no torch needed)."""
+        return self._type_mask[np.asarray(node_type, dtype=np.int64)]
 
     def mask(self, node_type: Tensor) -> Tensor:
         """Per-node column mask ``[N, dim]`` for a vector of node type ids."""

@@ -33,16 +33,9 @@ def as_feature_set(feature_set: str | FeatureSet) -> FeatureSet:
     return get_feature_set(feature_set) if isinstance(feature_set, str) else feature_set
 
 
-_TYPE_MASKS: dict[tuple[str, int], np.ndarray] = {}
-
-
 def node_mask(fs: FeatureSet, types) -> np.ndarray:
-    """``fs.mask(types)`` as a NumPy ``[N, dim]`` bool array, from a per-set table made once
-    (indexing the set's mask per robot costs more than the rest of a rule)."""
-    key = (fs.name, fs.dim)
-    if key not in _TYPE_MASKS:
-        _TYPE_MASKS[key] = fs.type_mask_array()
-    return _TYPE_MASKS[key][np.asarray(types, dtype=np.int64)]
+    """``fs.mask(types)`` as a NumPy ``[N, dim]`` bool array (:meth:`FeatureSet.mask_array`)."""
+    return fs.mask_array(types)
 
 
 class GraphView:

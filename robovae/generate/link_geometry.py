@@ -146,11 +146,18 @@ def _unit(v: np.ndarray) -> np.ndarray | None:
     return v / n if n > 1e-9 else None
 
 
+def _by_size(half: np.ndarray) -> tuple[list[int], float, float, float]:
+    """A box's axes from its largest half-size to its smallest (stable: ties keep the axis
+    order), and those half-sizes ``a >= b >= e``."""
+    h = half.tolist()
+    order = sorted(range(3), key=lambda k: -h[k])
+    a, b, e = (h[k] for k in order)
+    return order, a, b, e
+
+
 def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> GeomPlan:
     """The primitive that fills a collision box (module docstring)."""
-    h = half.tolist()
-    order = sorted(range(3), key=lambda k: -h[k])  # stable: ties keep the axis order
-    a, b, e = (h[k] for k in order)
+    order, a, b, e = _by_size(half)
     q = quat / (norm(quat) or 1.0)
     if a >= 1.5 * b:
         r = max(0.5 * (b + e), MIN_RADIUS)
@@ -168,9 +175,7 @@ def _disc(f: LinkFrame) -> GeomPlan | None:
     """The cylinder of a link whose collision box is a disc spun by one of its hinges (module
     docstring), else None."""
     center, quat, half = f.box
-    h = half.tolist()
-    order = sorted(range(3), key=lambda k: -h[k])
-    a, b, e = (h[k] for k in order)
+    order, a, b, e = _by_size(half)
     if a > 1.2 * b:
         return None
     n = np.zeros(3)
