@@ -9,9 +9,11 @@ measures being written in :mod:`robovae.evaluate` can replace these behind the s
   (:func:`robovae.evaluate.quality.locomotion.gait`, one sinusoidal-gait scorer for the
   project) with the optimiser's budget: ``trials`` (8) seeded random open-loop gaits of
   ``seconds`` (3 s) each, in the ``robovae/Walk-v0`` scene (:func:`robovae.envs.walk.walk_scene`:
-  floor, free base). Gait ``j`` drives actuator ``a`` with ``c_a + A_a h_a sin(2 pi f t +
-  phi_a)`` (``c_a``, ``h_a`` the middle and half-width of its control range), ``A_a ~ U[0, 1]``,
-  ``phi_a ~ U[0, 2 pi)``, ``f ~ U[0.5, 3] Hz``, from the robot's rest pose. Its speed is the
+  floor, free base). Gait ``j`` drives actuator ``a`` with ``c_a + h_a (B_a + A_a sin(2 pi f t
+  + phi_a))`` clipped to its control range (``c_a``, ``h_a`` the middle and half-width of that
+  range), ``A_a ~ U[0, 1]``, ``phi_a ~ U[0, 2 pi)``, ``f ~ U[0.5, 3] Hz``, the offset ``B_a ~
+  U[-1, 1]`` on the actuators of unlimited hinges (wheels turn) and 0 on the others, from the
+  robot's rest pose. Its speed is the
   root's horizontal displacement from ``settle`` (1 s) to the end, divided by that time and by
   the robot's **extent** ``L`` (the diagonal of its bounding box at ``qpos0``, m): body lengths
   per second, so that size alone does not win. When the robot **falls** — its root's up axis
@@ -52,8 +54,9 @@ __all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score"
 #: Changes whenever a measure changes: an optimisation log of another version is not continued.
 #: 3: the walk score is the quality measure's gait search (issue 22); 4: rollouts that fly
 #: (centre of mass above half the extent over rest, ``locomotion.MAX_RISE``) score 0;
-#: 5: robots with an actuated base (``locomotion.actuated_base``) score 0.
-SCORE_VERSION = 5
+#: 5: robots with an actuated base (``locomotion.actuated_base``) score 0; 6: the actuators of
+#: unlimited hinges get a constant offset in each gait (``locomotion.continuous_actuators``).
+SCORE_VERSION = 6
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _BALL = int(mujoco.mjtJoint.mjJNT_BALL)
@@ -81,9 +84,10 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
               settle: float = 1.0, max_tilt: float = 60.0) -> dict:
     """The gait that gives :func:`walk_score` (same arguments) its score, as JSON-ready
     numbers: ``score``, ``speed``, ``extent``, ``seconds``, ``settle``, ``max_tilt``, the
-    ``score_seed``, and the gait itself, ``frequency`` (Hz), ``amplitude`` and ``phase`` per
-    actuator in the model's order (``actuators``: their names). In ``robovae/Walk-v0``'s
-    normalised actions it is ``a(t) = A sin(2 pi f t + phi)``
+    ``score_seed``, and the gait itself, ``frequency`` (Hz), ``amplitude``, ``phase`` and
+    ``offset`` per actuator in the model's order (``actuators``: their names). In
+    ``robovae/Walk-v0``'s normalised actions it is ``a(t) = clip(B + A sin(2 pi f t + phi), -1,
+    1)``
     (:class:`robovae.envs.gait.SinusoidGait`); a robot that scores 0 has no gait (``frequency``
     None, empty lists)."""
     g, model = _walk(path, seed, trials, seconds, settle, max_tilt)
@@ -94,7 +98,8 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
             "frequency": g.frequency if moves else None,
             "actuators": names if moves else [],
             "amplitude": [float(v) for v in g.amplitude] if moves else [],
-            "phase": [float(v) for v in g.phase] if moves else []}
+            "phase": [float(v) for v in g.phase] if moves else [],
+            "offset": [float(v) for v in g.offset] if moves else []}
 
 
 def stand_score(path: str | os.PathLike, seed: int = 0, seconds: float = 3.0) -> dict:

@@ -1,11 +1,13 @@
 """Open-loop sinusoidal gaits as ``robovae/Walk-v0`` policies.
 
 The walk score (:func:`robovae.design.score.walk_score`) drives actuator ``a`` with
-``ctrl_a(t) = c_a + A_a h_a sin(2 pi f t + phi_a)`` (``c_a``, ``h_a``: the middle and
-half-width of its control range). :class:`~robovae.envs.walk.WalkEnv` maps a normalised action
-to ``ctrl = c + a h``, so the same gait as a policy is
+``ctrl_a(t) = c_a + h_a (B_a + A_a sin(2 pi f t + phi_a))`` clipped to its control range
+(``c_a``, ``h_a``: the middle and half-width of that range; the offset ``B_a`` is 0 but on the
+actuators of unlimited hinges, :func:`~robovae.evaluate.quality.locomotion.continuous_actuators`).
+:class:`~robovae.envs.walk.WalkEnv` maps a normalised action to ``ctrl = c + a h``, so the same
+gait as a policy is
 
-    a_a(t) = A_a sin(2 pi f t + phi_a),      t = the simulation time (``data.time``),
+    a_a(t) = clip(B_a + A_a sin(2 pi f t + phi_a), -1, 1),      t = the simulation time,
 
 :class:`SinusoidGait`. ``robovae optimize --task walk`` writes each best robot's gait beside
 it (``gait.json``, :func:`robovae.design.score.walk_gait`), and :func:`replay` drives a
@@ -36,21 +38,25 @@ __all__ = ["GaitReplay", "SinusoidGait", "replay"]
 
 @dataclass(frozen=True)
 class SinusoidGait:
-    """``a(t) = amplitude * sin(2 pi frequency t + phase)`` in normalised actions (module
-    docstring): ``frequency`` in Hz, ``amplitude`` and ``phase`` (rad) ``[nu]``."""
+    """``a(t) = clip(offset + amplitude * sin(2 pi frequency t + phase), -1, 1)`` in normalised
+    actions (module docstring): ``frequency`` in Hz, ``amplitude``, ``phase`` (rad) and
+    ``offset`` (None: 0) ``[nu]``."""
 
     frequency: float
     amplitude: np.ndarray
     phase: np.ndarray
+    offset: np.ndarray | None = None
 
     def __call__(self, t: float) -> np.ndarray:
         """The action at time ``t`` (s), ``[nu]`` in ``[-1, 1]``."""
-        return self.amplitude * np.sin(2.0 * math.pi * self.frequency * t + self.phase)
+        wave = self.amplitude * np.sin(2.0 * math.pi * self.frequency * t + self.phase)
+        return wave if self.offset is None else np.clip(self.offset + wave, -1.0, 1.0)
 
     @classmethod
     def from_json(cls, path: str | os.PathLike) -> SinusoidGait:
         """The gait of a ``gait.json`` written by ``robovae optimize`` (or any JSON object
-        with ``frequency``, ``amplitude`` and ``phase``).
+        with ``frequency``, ``amplitude`` and ``phase``, and optionally ``offset``: 0 when
+        absent).
 
         Raises:
             RobovaeError: one line naming the file: unreadable, not such an object, or a
@@ -60,13 +66,15 @@ class SinusoidGait:
         try:
             obj = json.loads(path.read_text())
             freq, amp, phase = obj["frequency"], obj["amplitude"], obj["phase"]
-        except (OSError, ValueError, KeyError, TypeError) as e:
+            offset = obj.get("offset") or [0.0] * len(amp or [])
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
             raise RobovaeError(f"robovae: {path}: not a gait file ({type(e).__name__}: "
                                f"{' '.join(str(e).split())})") from None
-        if freq is None or len(amp) != len(phase) or not amp:
-            raise RobovaeError(f"robovae: {path}: no gait (the robot scored 0, or amplitude "
-                               "and phase differ in length)")
-        return cls(float(freq), np.asarray(amp, dtype=float), np.asarray(phase, dtype=float))
+        if freq is None or not amp or not len(amp) == len(phase) == len(offset):
+            raise RobovaeError(f"robovae: {path}: no gait (the robot scored 0, or amplitude, "
+                               "phase and offset differ in length)")
+        return cls(float(freq), np.asarray(amp, dtype=float), np.asarray(phase, dtype=float),
+                   np.asarray(offset, dtype=float))
 
 
 @dataclass

@@ -43,6 +43,24 @@ def test_replay_with_frame_skip_one_is_the_walk_score(quadruped, tmp_path):
     a, b = replay(env5, gait, 1.0, seed=3), replay(env5, gait, 1.0, seed=3)
     assert np.array_equal(a.root, b.root) and a.episode_return == b.episode_return
     assert gait(0.0) == pytest.approx(gait.amplitude * np.sin(gait.phase))
+    assert g["offset"] == [0.0] * len(g["amplitude"])  # no wheels
+
+
+def test_a_gait_with_an_offset_is_clipped_and_read_back(tmp_path) -> None:
+    wheel = SinusoidGait(0.5, np.array([0.5, 1.0]), np.zeros(2), np.array([0.8, 0.0]))
+    assert wheel(1.0).tolist() == pytest.approx([0.8, 0.0], abs=1e-12)  # sin(pi) = 0
+    assert wheel(0.5).tolist() == pytest.approx([1.0, 1.0])  # 0.8 + 0.5 clipped
+    (tmp_path / "g.json").write_text(json.dumps(
+        {"frequency": 0.5, "amplitude": [0.5, 1.0], "phase": [0, 0], "offset": [0.8, 0]}))
+    assert SinusoidGait.from_json(tmp_path / "g.json")(0.5).tolist() == pytest.approx([1, 1])
+    # a gait file of an earlier score version (no offsets) replays with none
+    (tmp_path / "old.json").write_text(json.dumps(
+        {"frequency": 0.5, "amplitude": [0.5, 1.0], "phase": [0, 0]}))
+    assert not SinusoidGait.from_json(tmp_path / "old.json").offset.any()
+    (tmp_path / "bad.json").write_text(json.dumps(
+        {"frequency": 0.5, "amplitude": [0.5, 1.0], "phase": [0, 0], "offset": [1]}))
+    with pytest.raises(RobovaeError, match="bad.json: no gait"):
+        SinusoidGait.from_json(tmp_path / "bad.json")
 
 
 def test_bad_gaits_are_refused_in_one_line(quadruped, tmp_path):

@@ -5,12 +5,18 @@ from __future__ import annotations
 import math
 
 import mujoco
+import numpy as np
 import pytest
+from mujoco import rollout
 
 from robovae.data.procedural import ProceduralConfig, procedural_spec
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality import gait, gait_speed, stage, standing
-from robovae.evaluate.quality.locomotion import actuated_base
+from robovae.evaluate.quality.locomotion import (
+    actuated_base,
+    continuous_actuators,
+    sinusoid_controls,
+)
 from robovae.evaluate.quality.measure import measure
 from robovae.evaluate.quality.stage import prepare, rest_pose, robot_points, stage_compiled
 from robovae.generate.validate import check_robot
@@ -110,17 +116,17 @@ def gantry() -> mujoco.MjSpec:
 
 
 def cart(lift_gear: float) -> mujoco.MjSpec:
-    """A box on passive x and z slides to the world, rolled by a motorised wheel; a piston on a
-    vertical slide with a motor of gear ``lift_gear`` (control range ``[0.9, 1]``) pushes on
-    the floor whatever the gait and, when strong, lifts the cart off it (standing in for
-    numerical energy)."""
+    """A box on passive x and z slides to the world, rolled by a motorised wheel (damped, so
+    that a constant torque turns it at a bounded speed); a piston on a vertical slide with a
+    motor of gear ``lift_gear`` (control range ``[0.9, 1]``) pushes on the floor whatever the
+    gait and, when strong, lifts the cart off it (standing in for numerical energy)."""
     spec = mujoco.MjSpec()
     body = spec.worldbody.add_body(name="cart", pos=[0, 0, 0.15])
     for name, axis in (("x", [1, 0, 0]), ("z", [0, 0, 1])):
         body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
     body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.05], mass=1.0)
     wheel = body.add_body(name="wheel", pos=[0, 0, -0.05])
-    wheel.add_joint(name="roll", axis=[0, 1, 0])
+    wheel.add_joint(name="roll", axis=[0, 1, 0]).damping[0] = 0.5
     wheel.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.1, 0, 0],
                    fromto=[0, 0.11, 0, 0, 0.16, 0], mass=0.3)
     piston = body.add_body(name="piston", pos=[0.15, 0, -0.05])
@@ -140,6 +146,41 @@ def test_a_rollout_that_flies_does_not_count() -> None:
     grounded, flying = gait(cart(0.0), **FAST), gait(cart(200.0), **FAST)
     assert grounded.speed > 0 and grounded.unstable == 0
     assert flying.speed == 0.0 and flying.unstable == FAST["rollouts"]
+
+
+def _rolled(model: mujoco.MjModel, r, offset) -> float:
+    """Horizontal distance (m) the cart's root covers under gait ``r`` with ``offset``."""
+    steps = round(r.seconds / model.opt.timestep)
+    ctrl = sinusoid_controls(model, r.amplitude[None], r.phase[None],
+                             np.array([r.frequency]), steps, offset[None])
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    state = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
+    mujoco.mj_getState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    states, _ = rollout.rollout(model, data, state[None], ctrl, nstep=steps)
+    return abs(float(states[0, -1, 1] - states[0, 0, 1]))  # qpos[0]: the x slide
+
+
+def test_a_wheel_is_turned_not_only_rocked() -> None:
+    """The motor of an unlimited hinge gets a constant offset in each gait, so the cart rolls
+    on; a sinusoid alone rocks its wheel about its rest angle. Other actuators get none."""
+    model = cart(0.0).compile()
+    assert continuous_actuators(model).tolist() == [True, False]
+    assert not continuous_actuators(procedural_spec(2, "quadruped").compile()).any()
+    assert not continuous_actuators(gantry().compile()).any()  # slides
+    r = gait(cart(0.0), **FAST)
+    assert r.offset[0] != 0.0 and r.offset[1] == 0.0
+    assert _rolled(model, r, r.offset) > 3 * _rolled(model, r, np.zeros(2))
+    quad = gait(procedural_spec(2, "quadruped"), **FAST)
+    assert not quad.offset.any()
+    # controls stay in the actuators' ranges; a zero offset leaves the sinusoids untouched
+    amp, phase = np.ones((4, 2)), np.zeros((4, 2))
+    freq, off = np.ones(4), np.array([[1.0, 0.0]] * 4)
+    ctrl = sinusoid_controls(model, amp, phase, freq, 600, off)
+    assert ctrl[..., 0].max() == 1.0 and ctrl[..., 0].min() == pytest.approx(0.0, abs=1e-3)
+    assert ctrl[..., 1].min() >= 0.9 and ctrl[..., 1].max() <= 1.0
+    assert np.array_equal(sinusoid_controls(model, amp, phase, freq, 600, 0 * off),
+                          sinusoid_controls(model, amp, phase, freq, 600))
 
 
 def test_a_robot_moved_by_a_motor_on_its_root_does_not_walk() -> None:

@@ -3,14 +3,19 @@
 The robot (on a floor, :func:`~robovae.evaluate.quality.stage.stage`) is driven by its own
 actuators with one open-loop gait per rollout,
 
-    ctrl_a(t) = c_a + A_a h_a sin(2π f t + φ_a),
+    ctrl_a(t) = clip(c_a + h_a (B_a + A_a sin(2π f t + φ_a)), lo_a, hi_a),
 
-``c_a`` and ``h_a`` the middle and half-width of actuator ``a``'s ``ctrlrange`` (``[-1, 1]``
-when unlimited), amplitude ``A_a ~ U[0, 1]`` and phase ``φ_a ~ U[0, 2π)`` per actuator and one
-frequency ``f ~ U[f_lo, f_hi]`` (0.5–3 Hz) per rollout. A fixed budget of ``rollouts`` (64)
-random gaits of ``seconds`` (4 s) each, drawn from ``numpy.random.default_rng(seed)``, runs in
-one ``mujoco.rollout`` call from the robot's rest pose
-(:func:`~robovae.evaluate.quality.stage.rest_pose`) at rest (random search).
+``c_a`` and ``h_a`` the middle and half-width of actuator ``a``'s ``ctrlrange`` ``[lo_a, hi_a]``
+(``[-1, 1]`` when unlimited), amplitude ``A_a ~ U[0, 1]`` and phase ``φ_a ~ U[0, 2π)`` per
+actuator and one frequency ``f ~ U[f_lo, f_hi]`` (0.5–3 Hz) per rollout. The **offset**
+``B_a ~ U[-1, 1]`` is drawn for the actuators that drive an unlimited hinge
+(:func:`continuous_actuators`: a wheel, a rotor) and is 0 for all others: a wheel is turned,
+not only rocked about its rest angle (a motor's constant term is a constant torque). The
+offsets are drawn after every other number, so a robot without such actuators runs the same
+gaits as without offsets. A fixed budget of ``rollouts`` (64) random gaits of ``seconds``
+(4 s) each, drawn from ``numpy.random.default_rng(seed)``, runs in one ``mujoco.rollout`` call
+from the robot's rest pose (:func:`~robovae.evaluate.quality.stage.rest_pose`) at rest (random
+search).
 
 The **speed** of a gait is the horizontal distance (m) the root body covers between
 ``settle · seconds`` (a quarter of the rollout: falling over or dropping onto the floor at the
@@ -53,8 +58,8 @@ from mujoco import rollout
 from robovae.data.loading import capture_mujoco_warnings, quiet_forward
 from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
-__all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "actuated_base", "gait", "gait_speed",
-           "sinusoid_controls"]
+__all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "actuated_base", "continuous_actuators",
+           "gait", "gait_speed", "sinusoid_controls"]
 
 #: Seconds between the samples that look for a fall (``max_tilt``) or a flight.
 FALL_SAMPLE_DT = 0.01
@@ -77,6 +82,7 @@ class GaitResult:
     rollouts: int
     seconds: float  # simulated per rollout
     actuated_base: bool = False  # scored 0: a motor drives the root relative to the world
+    offset: np.ndarray | None = None  # [nu] of the best gait (0 but on continuous actuators)
 
 
 _JOINT_TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
@@ -91,17 +97,31 @@ def actuated_base(model: mujoco.MjModel, root: int) -> bool:
     return bool(np.any(model.jnt_bodyid[joints] == root))
 
 
+def continuous_actuators(model: mujoco.MjModel) -> np.ndarray:
+    """``[nu]`` bool: the actuators whose joint transmission drives a hinge without limits
+    (a wheel, a rotor): the gaits give them a constant offset (module docstring)."""
+    on_joint = np.isin(model.actuator_trntype, _JOINT_TRANSMISSIONS)
+    joint = np.where(on_joint, model.actuator_trnid[:, 0], 0)
+    hinge = model.jnt_type[joint] == int(mujoco.mjtJoint.mjJNT_HINGE)
+    return on_joint & hinge & ~model.jnt_limited[joint].astype(bool)
+
+
 def sinusoid_controls(model: mujoco.MjModel, amplitude: np.ndarray, phase: np.ndarray,
-                      frequency: np.ndarray, steps: int) -> np.ndarray:
+                      frequency: np.ndarray, steps: int, offset: np.ndarray | None = None
+                      ) -> np.ndarray:
     """``[R, steps, nu]`` controls of ``R`` gaits (module docstring) at the model's time
-    step: ``amplitude`` and ``phase`` ``[R, nu]``, ``frequency`` ``[R]`` (Hz)."""
+    step: ``amplitude``, ``phase`` and ``offset`` (None: 0) ``[R, nu]``, ``frequency``
+    ``[R]`` (Hz)."""
     limited = model.actuator_ctrllimited.astype(bool)
     lo = np.where(limited, model.actuator_ctrlrange[:, 0], -1.0)
     hi = np.where(limited, model.actuator_ctrlrange[:, 1], 1.0)
     mid, half = (lo + hi) / 2, (hi - lo) / 2
     t = np.arange(steps) * model.opt.timestep
     arg = 2 * np.pi * frequency[:, None, None] * t[None, :, None] + phase[:, None, :]
-    return mid + amplitude[:, None, :] * half * np.sin(arg)
+    ctrl = mid + amplitude[:, None, :] * half * np.sin(arg)
+    if offset is None or not np.any(offset):
+        return ctrl
+    return np.clip(ctrl + (offset * half)[:, None, :], lo, hi)
 
 
 def _root_pos(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray, root: int
@@ -154,12 +174,13 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     driven = model.nu > 0 and actuated_base(model, root)
     if model.nu == 0 or rollouts <= 0 or driven:
         return GaitResult(0.0, 0.0, st.extent, nan, np.zeros(model.nu), np.zeros(model.nu),
-                          0, max(rollouts, 0), steps * dt, driven)
+                          0, max(rollouts, 0), steps * dt, driven, np.zeros(model.nu))
     rng = np.random.default_rng(seed)
     amp = rng.uniform(0.0, 1.0, (rollouts, model.nu))
     phase = rng.uniform(0.0, 2 * np.pi, (rollouts, model.nu))
     freq = rng.uniform(frequency[0], frequency[1], rollouts)
-    ctrl = sinusoid_controls(model, amp, phase, freq, steps)
+    offset = rng.uniform(-1.0, 1.0, (rollouts, model.nu)) * continuous_actuators(model)
+    ctrl = sinusoid_controls(model, amp, phase, freq, steps, offset)
     data = mujoco.MjData(model)
     data.qpos[:] = rest_pose(model)
     quiet_forward(model, data)
@@ -196,7 +217,8 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
         speeds[r] = float(np.linalg.norm((end - start)[:2])) / span
     best = int(np.argmax(speeds))
     return GaitResult(float(speeds[best]) / st.extent, float(speeds[best]), st.extent,
-                      float(freq[best]), amp[best], phase[best], bad, rollouts, steps * dt)
+                      float(freq[best]), amp[best], phase[best], bad, rollouts, steps * dt,
+                      offset=offset[best])
 
 
 def gait_speed(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0) -> float:
