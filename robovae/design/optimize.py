@@ -109,7 +109,8 @@ RESTART_AFTER = 10
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
 #: (:func:`robovae.generate.fixes.decoded_fixes`), then the writer with its stance rules.
-WRITER = "floating base (walk, stand), mirrored limbs, stance rules, spun discs as cylinders"
+WRITER = ("floating base (walk, stand), mirrored limbs, stance rules, spun discs as cylinders, "
+          "slide rails limited")
 
 
 def procedural_seed(seed: int, index: int) -> int:
@@ -377,7 +378,9 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         robot's median score under :data:`HELDOUT_SEEDS`), and ``heldout_best`` and
         ``heldout_best_rank`` (the largest such median among the ``top`` best robots, and that
         robot's rank: the pick of a user who wants the robot that does the task best, not the
-        one whose gaits were luckiest); plus ``out``, ``log``, ``plot``.
+        one whose gaits were luckiest), for walk ``power_per_kg`` (the best robot's scoring
+        gait: mean mechanical power over its mass, W/kg; else None); plus ``out``, ``log``,
+        ``plot``.
 
     Raises:
         RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
@@ -432,5 +435,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         pick = max(held[m], key=lambda h: (h["median"], -h["rank"]), default=None)
         summary[m]["heldout_best"] = pick["median"] if pick else None
         summary[m]["heldout_best_rank"] = pick["rank"] if pick else None
+        gait = (held[m][0].get("gait") or {}) if held[m] else {}  # walk: the best's gait
+        summary[m]["power_per_kg"] = gait["power"] / gait["mass"] \
+            if gait.get("power") is not None and gait.get("mass") else None
     png = plot(run, out / "convergence.png")
     return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(png)}

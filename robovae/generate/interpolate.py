@@ -5,8 +5,9 @@ means), step ``k`` of ``n`` decodes ``z_k = (1 - t_k) mu_a + t_k mu_b`` with ``t
 greedily. With node latents, the nodes' latent means are interpolated the same way, node by
 node in pre-order, the shorter robot's list padded with the other's tail:
 ``w_k[i] = (1 - t_k) w_a[i] + t_k w_b[i]``; so the two ends are exactly the robots'
-reconstructions. Every step then gets a floating base (a root joint becomes a free joint, as in
-``robovae generate``; limbs are not mirrored, so that the ends stay the reconstructions) and
+reconstructions. Every step then gets the decoded fixes of ``robovae generate``
+(:func:`~robovae.generate.fixes.decoded_fixes`: rails with ends, a floating base; limbs are not
+mirrored, so that the ends stay the reconstructions) and
 the writer's stance rules (:mod:`robovae.generate.stance`), writes ``step_<k>/robot.xml`` and
 validates it in MuJoCo (:func:`~robovae.generate.validate.validate_robot`): the paper's §6.2
 question of whether the space between two designs holds usable robots.
@@ -22,7 +23,7 @@ import torch
 from torch_geometric.data import Batch
 
 from robovae.data.graph import RobotData
-from robovae.generate.rules import floating_base
+from robovae.generate.fixes import decoded_fixes
 from robovae.generate.validate import Validation, validate_robot
 from robovae.generate.writer import write_robot
 from robovae.model.vae import RoboVAE
@@ -66,7 +67,7 @@ def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
     graphs = model.decode(z, node_latents=w, clamp=False)
     result = []
     for k, (tk, g) in enumerate(zip(t.tolist(), graphs)):
-        g, _ = floating_base(g, model.feature_set)
+        g, _ = decoded_fixes(g, model.feature_set, mirror=False)
         step = Step(tk, g)
         if out is not None:
             written = write_robot(g, Path(out) / f"step_{k:02d}", model.feature_set,

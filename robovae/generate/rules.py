@@ -22,7 +22,9 @@ Order and kinds (each rule's exact contract is in its module):
 7. ``subtreemass_consistent`` (after every mass change) — :mod:`robovae.generate.rules_mass`.
 
 :func:`floating_base` is not a rule (a robot anchored by a hinge is a valid model) but the
-generation choice of giving a robot whose root is a single joint a free joint.
+generation choice of giving a robot whose root is a single joint a free joint; nor is
+:func:`slide_limited` (a slide without limits is valid), the fix that gives a decoded rail its
+ends.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from robovae.generate import rules_geometry, rules_joints, rules_mass, rules_val
 from robovae.generate.bodies import free_root_allowed
 from robovae.generate.graph_view import GraphView, as_feature_set
 
-__all__ = ["RULES", "Rule", "apply_rules", "check_rules", "floating_base"]
+__all__ = ["RULES", "Rule", "apply_rules", "check_rules", "floating_base", "slide_limited"]
 
 Rule = Callable[[RobotTree, "str | FeatureSet"], tuple[RobotTree, bool]]
 
@@ -153,4 +155,19 @@ def floating_base(data: RobotTree, feature_set: str | FeatureSet = "paper34"
                 "joint.gear", "joint.ctrlrange"):
         if key.startswith("joint.") and v.has(key):
             v.set(0, key, 0.0)
+    return v.to_data(data), _changed(before, v.x)
+
+
+def slide_limited(data: RobotTree, feature_set: str | FeatureSet = "paper34"
+                  ) -> tuple[RobotTree, bool]:
+    """Give every unlimited slide joint off the trunk the range ``±SLIDE_STROKE``
+    (:func:`robovae.generate.rules_joints.slide_limited`; sets without ``joint.type`` have no
+    slides). Returns ``(repaired copy, changed)``.
+
+    Raises:
+        ValueError: as :func:`apply_rules`.
+    """
+    v = _view(data, as_feature_set(feature_set))
+    before = v.x.copy()
+    rules_joints.slide_limited(v)
     return v.to_data(data), _changed(before, v.x)

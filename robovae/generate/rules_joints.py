@@ -26,6 +26,20 @@ those of :func:`~robovae.generate.bodies.joint_types`.
 ``nonnegative_dynamics``
     ``joint.damping``, ``armature``, ``frictionloss``, ``stiffness`` and ``geom.friction``
     ``≥ 0``.
+
+Not a rule (MuJoCo accepts it, and a real robot written by the writer keeps it) but a fix of
+decoded graphs (:mod:`robovae.generate.fixes`):
+
+``slide_limited`` (sets with ``joint.type``)
+    A slide joint is a rail of finite length: one without limits lets its body run off any
+    distance (a decoded robot that the walk optimiser shook shed eleven bodies along such
+    rails, metres from its trunk, all of them "attached" at rest). A slide that is unlimited
+    (as ``range_ordered`` decides it: the ``joint.limited`` flag below 0.5 or both range ends
+    within :data:`~robovae.generate.bodies.RANGE_ZERO` of 0) and that is not a joint of the
+    trunk (those connect the robot to the world, as dm_control's planar ``rootx``/``rootz``
+    do) gets the range ``[-SLIDE_STROKE, SLIDE_STROKE]`` (:data:`SLIDE_STROKE`, 5 cm: the
+    order of the real robots' grippers and suspensions, whose non-root slides are all
+    limited) and its flag set.
 """
 
 from __future__ import annotations
@@ -39,17 +53,20 @@ from robovae.generate.bodies import (
     RANGE_ZERO,
     free_root_allowed,
     link_structure,
+    trunk,
     view_joint_types,
 )
 from robovae.generate.graph_view import GraphView, ceil32, floor32
 
-__all__ = ["DYNAMICS", "HINGE_LIMIT", "MIN_RANGE_WIDTH", "joint_type_valid",
-           "nonnegative_dynamics", "range_ordered"]
+__all__ = ["DYNAMICS", "HINGE_LIMIT", "MIN_RANGE_WIDTH", "SLIDE_STROKE", "joint_type_valid",
+           "nonnegative_dynamics", "range_ordered", "slide_limited"]
 
 #: Narrowest limited range, relative to ``max(1, |lo|, |hi|)``.
 MIN_RANGE_WIDTH = 1e-4
 #: Widest hinge range end (rad).
 HINGE_LIMIT = 2.0 * math.pi
+#: Half-stroke (m) of a slide joint off the trunk that the decoding leaves unlimited.
+SLIDE_STROKE = 0.05
 #: Dynamics features that must be non-negative.
 DYNAMICS = ("joint.damping", "joint.armature", "joint.frictionloss", "joint.stiffness",
             "geom.friction")
@@ -129,6 +146,28 @@ def range_ordered(v: GraphView) -> None:
                 v.set(i, "joint.ctrlrange", 0.0)
             else:
                 v.set(i, "joint.ctrlrange", _fix_range(lo, hi, creg.low, creg.high))
+
+
+def slide_limited(v: GraphView) -> None:
+    """Limit the unlimited slide joints off the trunk to ``±SLIDE_STROKE`` (module docstring:
+    a fix of decoded graphs, not one of the rules)."""
+    if not v.has("joint.type"):
+        return
+    types = view_joint_types(v)
+    slides = [i for i in v.nodes(JOINT) if types[i] == "slide"]
+    if not slides:
+        return
+    top = trunk(v.types, v.kids)
+    root_joints = set(link_structure(v.parent, v.types)[1][top]) if top >= 0 else set()
+    has_flag = v.has("joint.limited")
+    for i in slides:
+        limited = np.abs(v.get(i, "joint.range")).max() >= RANGE_ZERO and \
+            (not has_flag or v.get(i, "joint.limited")[0] >= 0.5)
+        if i in root_joints or limited:
+            continue
+        v.set(i, "joint.range", [-SLIDE_STROKE, SLIDE_STROKE])
+        if has_flag:
+            v.set(i, "joint.limited", 1.0)
 
 
 def nonnegative_dynamics(v: GraphView) -> None:

@@ -18,9 +18,15 @@ from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.generate.bodies import joint_types, link_structure
-from robovae.generate.rules import RULES, apply_rules, check_rules, floating_base
+from robovae.generate.rules import (
+    RULES,
+    apply_rules,
+    check_rules,
+    floating_base,
+    slide_limited,
+)
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS, MIN_SIZE
-from robovae.generate.rules_joints import HINGE_LIMIT, MIN_RANGE_WIDTH
+from robovae.generate.rules_joints import HINGE_LIMIT, MIN_RANGE_WIDTH, SLIDE_STROKE
 from robovae.generate.rules_mass import MIN_INERTIA, MIN_MASS
 from robovae.generate.writer import graph_to_spec
 from tests.conftest import random_tree
@@ -254,6 +260,40 @@ def test_range_ordered_full():
     assert feat(out, fs, "joint.range", j[0]).tolist() == [0.0, 0.0]
     assert feat(out, fs, "joint.limited", j[0]).tolist() == [0.0]
     assert feat(out, fs, "joint.ctrlrange", j[3]).tolist() == [-1.0, 1.0]
+
+
+def test_slide_limited_gives_a_decoded_rail_its_ends_but_not_a_root_slide():
+    """A fix of decoded graphs, not a rule: an unlimited slide below the trunk (flag 0, or a
+    range of zeros) gets ±SLIDE_STROKE, a limited one keeps its range, the trunk's own slides
+    (dm_control's cheetah: rootx, rootz) stay unlimited; apply_rules leaves rails alone (a
+    slide without limits is valid)."""
+    fs = "full"
+    d = quadruped(fs)
+    j = nodes(d, JOINT)
+    slide = np.eye(4)[JOINT_TYPES.index("slide")]
+    for i in (j[1], j[2], j[3]):
+        put(d, fs, "joint.type", i, slide)
+    put(d, fs, "joint.limited", j[1], 0.0)  # a rail without ends, decoded range left over
+    put(d, fs, "joint.range", j[2], [-0.02, 0.03])
+    put(d, fs, "joint.range", j[3], [0.0, 0.0])  # a rail without ends, flag left over
+    assert "slide_limited" not in apply_rules(d, fs)[1] and "slide_limited" not in RULES
+    out, changed = slide_limited(d, fs)
+    assert changed
+    for i in (j[1], j[3]):
+        assert feat(out, fs, "joint.range", i) == pytest.approx([-SLIDE_STROKE, SLIDE_STROKE])
+        assert feat(out, fs, "joint.limited", i).tolist() == [1.0]
+    assert feat(out, fs, "joint.range", j[2]) == pytest.approx([-0.02, 0.03])
+    assert not slide_limited(out, fs)[1]  # once is enough
+    out, fired = apply_rules(out, fs)
+    assert "range_ordered" not in fired  # the fix leaves valid ranges
+    model = graph_to_spec(out, fs)[0].compile()
+    slides = [k for k in range(model.njnt) if model.jnt_type[k] == 2]
+    assert len(slides) == 3 and all(model.jnt_limited[k] for k in slides)
+    cheetah = dict(zoo_files()[0]).get("dmc_cheetah")
+    if cheetah is not None:  # root slides to the world: left alone
+        g = real_graph(str(cheetah), fs)
+        assert "slide" in joint_types(g, fs)
+        assert not slide_limited(g, fs)[1]
 
 
 @pytest.mark.parametrize("fs", SETS)
