@@ -107,7 +107,11 @@ def cmd_optimize(args: argparse.Namespace) -> int:
              pick: "" if res[m]["heldout_best"] is None else
              f"{res[m]['heldout_best']:.4f} ({res[m]['heldout_best_rank']})"}
             for m in METHODS]
-    print(format_table(rows, ["method", "evaluations", "best", "best index", held, pick]))
+    power = "best's W/kg"  # walk: mechanical power of the best robot's scoring gait per kg
+    for m, row in zip(METHODS, rows):
+        row[power] = "" if res[m].get("power_per_kg") is None else f"{res[m]['power_per_kg']:.0f}"
+    columns = ["method", "evaluations", "best", "best index", held, pick]
+    print(format_table(rows, columns + ([power] if args.task == "walk" else [])))
     print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
     if args.task == "walk":  # robovae.design.results
         print(f"each best robot's gait: {args.out}/best/<method>/rank_<k>/gait.json "

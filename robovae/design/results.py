@@ -107,7 +107,7 @@ def _score_seed(item: tuple[str, str, int]) -> float | dict:
             return {**walk_gait(path), "error": None}
         except Exception as e:  # as score_robot: a robot that cannot walk scores 0, no gait
             return {"score": 0.0, "frequency": None, "actuators": [], "amplitude": [],
-                    "phase": [], "offset": [],
+                    "phase": [], "offset": [], "power": 0.0, "mass": None,
                     "error": " ".join(f"{type(e).__name__}: {e}".split())[:300]}
     return float(score_robot(path, task, seed=seed)["score"])
 

@@ -21,8 +21,10 @@ measures being written in :mod:`robovae.evaluate` can replace these behind the s
   at a 10 ms sample — the displacement stops counting there (tumbling is not walking) but the
   time still runs to the end: falling early costs. A rollout that diverges scores 0, and so
   does a robot whose root body is moved by its own motor (an actuated base). ``score``
-  is the best gait's speed; ``speed`` is the same in m/s. (The quality table's locomotion
-  measure searches 64 gaits of 4 s and does not stop at falls.)
+  is the best gait's speed; ``speed`` is the same in m/s; ``power`` (W) the mean mechanical
+  power that gait's actuators deliver while its distance counts, ``mass`` the robot's (kg).
+  (The quality table's locomotion measure searches 64 gaits of 4 s and does not stop at
+  falls.)
 - **stand** (:func:`stand_score`): :func:`robovae.evaluate.behaviour.standing_test` for 3 s
   (joints PD-held at ``qpos0`` with the robot's own torque limits); ``score`` is the lowest
   root height over the test as a fraction of its height at ``qpos0`` (``min_height_ratio``),
@@ -77,23 +79,23 @@ def walk_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds:
     gaits of ``seconds``, the first ``settle`` seconds not counted."""
     g, _ = _walk(path, seed, trials, seconds, settle, max_tilt)
     return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
-            "frequency": g.frequency}
+            "frequency": g.frequency, "power": g.power, "mass": g.mass}
 
 
 def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
               settle: float = 1.0, max_tilt: float = 60.0) -> dict:
     """The gait that gives :func:`walk_score` (same arguments) its score, as JSON-ready
-    numbers: ``score``, ``speed``, ``extent``, ``seconds``, ``settle``, ``max_tilt``, the
-    ``score_seed``, and the gait itself, ``frequency`` (Hz), ``amplitude``, ``phase`` and
-    ``offset`` per actuator in the model's order (``actuators``: their names). In
+    numbers: ``score``, ``speed``, ``extent``, ``power``, ``mass``, ``seconds``, ``settle``,
+    ``max_tilt``, the ``score_seed``, and the gait itself, ``frequency`` (Hz), ``amplitude``,
+    ``phase`` and ``offset`` per actuator in the model's order (``actuators``: their names). In
     ``robovae/Walk-v0``'s normalised actions it is ``a(t) = clip(B + A sin(2 pi f t + phi), -1,
-    1)``
-    (:class:`robovae.envs.gait.SinusoidGait`); a robot that scores 0 has no gait (``frequency``
+    1)`` (:class:`robovae.envs.gait.SinusoidGait`); a robot that scores 0 has no gait (``frequency``
     None, empty lists)."""
     g, model = _walk(path, seed, trials, seconds, settle, max_tilt)
     moves = g.speed > 0
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]
     return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent, "score_seed": seed,
+            "power": g.power, "mass": g.mass,
             "trials": trials, "seconds": seconds, "settle": settle, "max_tilt": max_tilt,
             "frequency": g.frequency if moves else None,
             "actuators": names if moves else [],

@@ -186,8 +186,14 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
             assert len(h["scores"]) == 8 and h["median"] == np.median(h["scores"])
         # the table names the top robot with the largest held-out median, and its rank
         best = max(held[m], key=lambda h: (h["median"], -h["rank"]))
-        row = next(line for line in text.splitlines() if line.startswith(m))
-        assert row.split()[-2:] == [f"{best['median']:.4f}", f"({best['rank']})"]
+        cells = next(line for line in text.splitlines() if line.startswith(m)).split()
+        k = cells.index(f"({best['rank']})")
+        assert cells[k - 1] == f"{best['median']:.4f}"
+        # and what the best robot's scoring gait spends: mechanical power per kg (W/kg)
+        g0 = held[m][0]["gait"]
+        assert (g0["power"] > 0) == (g0["score"] > 0)
+        if g0["error"] is None:  # a robot that cannot walk (no actuators) has no mass logged
+            assert g0["mass"] > 0 and cells[k + 1] == f"{g0['power'] / g0['mass']:.0f}"
     walker = held["procedural"][0]  # the humanoid: its score depends on the gaits drawn
     path = out / "best" / "procedural" / "rank_0" / "robot.xml"
     assert walker["scores"][:2] == [score_robot(path, "walk", seed=s)["score"] for s in (1, 2)]

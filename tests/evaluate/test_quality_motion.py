@@ -90,6 +90,10 @@ def test_gait_speed_is_seeded_and_a_weak_robot_moves_less() -> None:
     assert strong.speed == pytest.approx(strong.speed_m_s / strong.extent)
     assert strong.amplitude.shape == (12,) and 0.5 <= strong.frequency <= 3.0
     assert weak.speed < 0.25 * strong.speed
+    # what the best gait spends: mechanical power (W) while its distance counts
+    assert strong.power > 0 and strong.mass == pytest.approx(
+        procedural_spec(2, "quadruped").compile().body_subtreemass[1])
+    assert weak.power < 0.01 * strong.power
     assert gait_speed(procedural_spec(2, "quadruped"), **FAST) == strong.speed
 
 
@@ -194,7 +198,7 @@ def test_a_robot_moved_by_a_motor_on_its_root_does_not_walk() -> None:
 
 def test_a_robot_without_actuators_does_not_move() -> None:
     r = gait(stick(), **FAST)
-    assert r.speed == 0.0 and math.isnan(r.frequency)
+    assert r.speed == 0.0 and math.isnan(r.frequency) and r.power == 0.0
     assert gait(stick(actuated=True), **FAST).frequency > 0
 
 

@@ -30,7 +30,10 @@ does (Menagerie's Spot, driven open loop by its strong position servos, leaves t
 about half of the 64 gaits), and so does the simulator's numerical energy: a 77-body robot
 with motor gears up to 11,000 that CMA-ES over ``z`` found rose 98 m in 3 s without touching
 the floor, at 26 m/s.
-:func:`gait_speed` is the best speed over the budget. A robot without actuators scores 0, and
+:func:`gait_speed` is the best speed over the budget. ``GaitResult.power`` is what that gait
+spends: the mean over its counted 10 ms samples of the mechanical power its actuators deliver,
+``Σ_a |τ_a q̇_a|`` (W; MuJoCo's motors give their torque at any speed, so a motor on an unlimited
+hinge can spin up to where its joint damping stops it). A robot without actuators scores 0, and
 so does a robot with an **actuated base** (:func:`actuated_base`): a motor on a joint between
 its root body and the world moves the root by itself — a gantry, not locomotion (CMA-ES over
 ``z`` found a 15-tonne blob whose six actuated root slides carried it 65 m/s). Unactuated root
@@ -83,6 +86,8 @@ class GaitResult:
     seconds: float  # simulated per rollout
     actuated_base: bool = False  # scored 0: a motor drives the root relative to the world
     offset: np.ndarray | None = None  # [nu] of the best gait (0 but on continuous actuators)
+    power: float = 0.0  # W: the best gait's mean mechanical power while its distance counts
+    mass: float = 0.0  # kg: the robot's
 
 
 _JOINT_TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
@@ -153,6 +158,23 @@ def _scan(model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray, root: 
     return None, False
 
 
+def _mean_power(model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray,
+                ctrl: np.ndarray, first: int, last: int) -> float:
+    """Mean over the 10 ms samples of states ``first … last`` of one rollout of the mechanical
+    power its actuators deliver, ``Σ_a |f_a v_a|`` (W: actuator force times actuator velocity,
+    i.e. joint torque times joint speed), each state with the control applied next."""
+    every = max(1, round(FALL_SAMPLE_DT / model.opt.timestep))
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    total, n = 0.0, 0
+    for k in range(first, last + 1, every):
+        mujoco.mj_setState(model, data, states[k], spec)
+        data.ctrl[:] = ctrl[min(k + 1, len(ctrl) - 1)]
+        quiet_forward(model, data)
+        total += float(np.abs(data.actuator_force * data.actuator_velocity).sum())
+        n += 1
+    return total / max(n, 1)
+
+
 def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
          frequency: tuple[float, float] = (0.5, 3.0), settle: float = 0.25,
          max_steps: int = 2_000, max_tilt: float | None = None) -> GaitResult:
@@ -174,7 +196,8 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     driven = model.nu > 0 and actuated_base(model, root)
     if model.nu == 0 or rollouts <= 0 or driven:
         return GaitResult(0.0, 0.0, st.extent, nan, np.zeros(model.nu), np.zeros(model.nu),
-                          0, max(rollouts, 0), steps * dt, driven, np.zeros(model.nu))
+                          0, max(rollouts, 0), steps * dt, driven, np.zeros(model.nu),
+                          mass=float(model.body_subtreemass[root]))
     rng = np.random.default_rng(seed)
     amp = rng.uniform(0.0, 1.0, (rollouts, model.nu))
     phase = rng.uniform(0.0, 2 * np.pi, (rollouts, model.nu))
@@ -196,6 +219,7 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     with capture_mujoco_warnings():
         states, _ = rollout.rollout(model, data, state0[None], ctrl, nstep=steps)
     speeds = np.zeros(rollouts)
+    lasts = np.zeros(rollouts, dtype=int)
     bad = 0
     for r in range(rollouts):
         s = states[r]
@@ -214,11 +238,13 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
             continue
         start = _root_pos(model, data, s[first, 1:1 + model.nq], root)
         end = _root_pos(model, data, s[last, 1:1 + model.nq], root)
-        speeds[r] = float(np.linalg.norm((end - start)[:2])) / span
+        speeds[r], lasts[r] = float(np.linalg.norm((end - start)[:2])) / span, last
     best = int(np.argmax(speeds))
+    power = _mean_power(model, data, states[best], ctrl[best], first, int(lasts[best])) \
+        if speeds[best] > 0 else 0.0
     return GaitResult(float(speeds[best]) / st.extent, float(speeds[best]), st.extent,
                       float(freq[best]), amp[best], phase[best], bad, rollouts, steps * dt,
-                      offset=offset[best])
+                      offset=offset[best], power=power, mass=float(model.body_subtreemass[root]))
 
 
 def gait_speed(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0) -> float:
