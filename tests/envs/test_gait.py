@@ -46,6 +46,22 @@ def test_replay_with_frame_skip_one_is_the_walk_score(quadruped, tmp_path):
     assert g["offset"] == [0.0] * len(g["amplitude"])  # no wheels
 
 
+def test_a_wheeled_robots_gait_replays_to_its_score(tmp_path) -> None:
+    """A mobile manipulator's drive wheels get offsets; its gait.json replayed in Walk-v0
+    moves it as the score measured (up to rounding: the environment scales the clipped action
+    rather than clipping the scaled one)."""
+    path = tmp_path / "mobile.xml"
+    path.write_text(procedural_spec(0, kind="mobile_manipulator").to_xml())
+    g = walk_gait(path)
+    assert g["score"] > 0 and any(g["offset"]) and g["power"] > 0 and g["mass"] > 0
+    (tmp_path / "gait.json").write_text(json.dumps(g))
+    env = gymnasium.make(robovae.envs.WALK_ID, robot=str(path), frame_skip=1,
+                         reset_noise_scale=0.0)
+    r = replay(env, SinusoidGait.from_json(tmp_path / "gait.json"), g["seconds"])
+    assert r.speed(g["settle"], g["max_tilt"]) / g["extent"] == pytest.approx(g["score"],
+                                                                              rel=1e-6)
+
+
 def test_a_gait_with_an_offset_is_clipped_and_read_back(tmp_path) -> None:
     wheel = SinusoidGait(0.5, np.array([0.5, 1.0]), np.zeros(2), np.array([0.8, 0.0]))
     assert wheel(1.0).tolist() == pytest.approx([0.8, 0.0], abs=1e-12)  # sin(pi) = 0

@@ -172,6 +172,12 @@ def test_a_wheel_is_turned_not_only_rocked() -> None:
     assert continuous_actuators(model).tolist() == [True, False]
     assert not continuous_actuators(procedural_spec(2, "quadruped").compile()).any()
     assert not continuous_actuators(gantry().compile()).any()  # slides
+    thruster = mujoco.MjSpec()  # a site transmission on a model without joints
+    body = thruster.worldbody.add_body(name="b")
+    body.add_geom(size=[0.1, 0, 0])
+    body.add_site(name="s")
+    thruster.add_actuator(target="s", trntype=mujoco.mjtTrn.mjTRN_SITE).gear[2] = 1.0
+    assert continuous_actuators(thruster.compile()).tolist() == [False]
     r = gait(cart(0.0), **FAST)
     assert r.offset[0] != 0.0 and r.offset[1] == 0.0
     assert _rolled(model, r, r.offset) > 3 * _rolled(model, r, np.zeros(2))

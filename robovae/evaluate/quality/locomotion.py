@@ -106,6 +106,8 @@ def continuous_actuators(model: mujoco.MjModel) -> np.ndarray:
     """``[nu]`` bool: the actuators whose joint transmission drives a hinge without limits
     (a wheel, a rotor): the gaits give them a constant offset (module docstring)."""
     on_joint = np.isin(model.actuator_trntype, _JOINT_TRANSMISSIONS)
+    if model.njnt == 0:  # tendon or site transmissions only
+        return np.zeros(model.nu, dtype=bool)
     joint = np.where(on_joint, model.actuator_trnid[:, 0], 0)
     hinge = model.jnt_type[joint] == int(mujoco.mjtJoint.mjJNT_HINGE)
     return on_joint & hinge & ~model.jnt_limited[joint].astype(bool)
