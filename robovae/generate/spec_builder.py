@@ -27,7 +27,8 @@ rounded as MJCF output writes them (:mod:`robovae.generate.mjcf_numbers`).
   anchor and pointing at its first child's anchor; then capsule *bridges* of the link's
   thickness to its anchor and its children's anchors where the primitive does not reach them
   (``geom_bridge``). The root link's primitive sits at its origin, unrotated.
-- **actuators**: one ``motor`` per non-free joint. ``actuators="auto"``: in sets with
+- **actuators**: one ``motor`` per non-free joint (on a hinge without limits a DC motor with a
+  no-load speed, :func:`robovae.data.actuators.speed_limited`). ``actuators="auto"``: in sets with
   ``joint.actuated`` only the flagged joints, with their ``gear`` and ``ctrlrange``
   (``(0, 0)`` = unlimited), or, with ``joint.torque`` (``kinematic``), a gear of the joint's
   strength and the control range ``(-1, 1)``; elsewhere every non-free joint with
@@ -57,6 +58,7 @@ from typing import Literal
 import mujoco
 import numpy as np
 
+from robovae.data.actuators import speed_limited
 from robovae.data.box_axes import axes_to_quats
 from robovae.data.features import GEOM, GEOM_TYPE_IDS, GEOM_TYPES, JOINT, LINK, FeatureSet
 from robovae.data.tree_arrays import RobotTree, feature_values
@@ -128,6 +130,7 @@ class SpecBuilder:
         self.fixes: list[str] = []
         self.free_bodies: list[mujoco.MjsBody] = []
         self._shapes: dict[int, tuple] | None = None  # link -> (size, box, thickness)
+        self._continuous: set[str] = set()  # names of the hinges without limits
 
     def get(self, i: int, key: str) -> np.ndarray:
         """The columns of feature ``key`` of node ``i`` (rounded as MJCF writes them)."""
@@ -170,6 +173,8 @@ class SpecBuilder:
             joint.limited = _TRUE
             joint.range = [lo, hi]
         else:
+            if jtype == "hinge":
+                self._continuous.add(name)
             joint.limited = _FALSE
         joint.damping[0] = float(self.get(j, "joint.damping")[0])
         joint.armature = float(self.get(j, "joint.armature")[0])
@@ -195,6 +200,8 @@ class SpecBuilder:
                                 trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_motor()
         act.gear = [gear] * (3 if jtype == "ball" else 1) + [0.0] * (3 if jtype == "ball" else 5)
+        if jname in self._continuous and gear != 0.0 and tuple(ctrl) == DEFAULT_CTRLRANGE:
+            speed_limited(act, gear)  # a wheel: a DC motor
         if ctrl[0] != 0.0 or ctrl[1] != 0.0:
             act.ctrllimited = _TRUE
             act.ctrlrange = ctrl

@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 import torch
 
+from robovae.data.actuators import NO_LOAD_SPEED
 from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
 from robovae.data.graph import RobotData, tree_data
 from robovae.data.mjcf import mjcf_to_graph, model_to_graph
@@ -467,3 +468,21 @@ def test_a_worker_writes_validates_and_measures_without_torch(tmp_path):
     rec = __import__("json").loads(out.stdout.strip().splitlines()[-1])
     assert rec == {"valid": True, "quality": True, "error": None, "loaded": []}
     assert mujoco.MjModel.from_xml_path(str(tmp_path / "robot_0" / "robot.xml")).nbody > 2
+
+
+@pytest.mark.parametrize("fs", ["kinematic", "full"])
+def test_the_writer_gives_continuous_joints_dc_motors(fs):
+    """A mobile manipulator through its graph and the writer: its wheels (hinges without
+    limits) get DC motors as the procedural generator's do, its limited joints plain motors."""
+    original = procedural_spec(1, kind="mobile_manipulator").compile()
+    model = graph_to_spec(model_to_graph(original, fs), fs)[0].compile()
+    affine = int(mujoco.mjtBias.mjBIAS_AFFINE)
+    for m in (original, model):
+        on_joint = m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT)
+        joint = m.actuator_trnid[:, 0]
+        free = on_joint & (m.jnt_type[joint] == 3) & (m.jnt_limited[joint] == 0)
+        assert free.sum() >= 2
+        assert np.array_equal(m.actuator_biastype == affine, free)
+        gear = m.actuator_gear[free, 0]
+        assert m.actuator_biasprm[free, 2] == pytest.approx(-1.0 / (gear * NO_LOAD_SPEED))
+        assert (m.actuator_forcerange[free] == [-1.0, 1.0]).all()

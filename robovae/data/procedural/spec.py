@@ -4,7 +4,9 @@
 joint named ``root`` when the plan floats (else welded to the world), and below it one body per
 part (frames aligned with the world), its joints (limited when the part gives a range, damping,
 armature, stiffness) and geoms (explicit masses). Every joint with a gear gets a motor
-(``ctrlrange [-1, 1]``, ``gear``: the torque limit, N·m or N) when ``plan.actuators``. Geoms
+(``ctrlrange [-1, 1]``, ``gear``: the torque limit, N·m or N) when ``plan.actuators``; a
+hinge without range (a wheel) a DC motor with a no-load speed
+(:func:`robovae.data.actuators.speed_limited`). Geoms
 collide with a floor but not with each other unless ``plan.self_collision``. No floor, light
 or camera is added.
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import mujoco
 
+from robovae.data.actuators import speed_limited
 from robovae.data.procedural.blueprint import Part, RobotPlan
 
 _GEOM = {"capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
@@ -32,9 +35,11 @@ def _fill(spec: mujoco.MjSpec, body, part: Part, conaff: int, actuators: bool) -
         body.add_joint(name=name, type=_JOINT[j.type], damping=j.damping, armature=j.armature,
                        stiffness=j.stiffness, limited=extra.pop("limited", _FALSE), **extra)
         if actuators and j.gear > 0:
-            spec.add_actuator(name=f"{name}_motor", target=name, trntype=_TRN_JOINT,
-                              ctrllimited=_TRUE, ctrlrange=[-1.0, 1.0],
-                              gear=[j.gear, 0.0, 0.0, 0.0, 0.0, 0.0])
+            act = spec.add_actuator(name=f"{name}_motor", target=name, trntype=_TRN_JOINT,
+                                    ctrllimited=_TRUE, ctrlrange=[-1.0, 1.0],
+                                    gear=[j.gear, 0.0, 0.0, 0.0, 0.0, 0.0])
+            if j.type == "hinge" and j.range is None:  # a wheel: a DC motor
+                speed_limited(act, j.gear)
     for g in part.geoms:
         if g.fromto is not None:
             body.add_geom(type=_GEOM[g.type], fromto=list(g.fromto), size=[g.radius, 0.0, 0.0],
