@@ -27,8 +27,9 @@ rounded as MJCF output writes them (:mod:`robovae.generate.mjcf_numbers`).
   anchor and pointing at its first child's anchor; then capsule *bridges* of the link's
   thickness to its anchor and its children's anchors where the primitive does not reach them
   (``geom_bridge``). The root link's primitive sits at its origin, unrotated.
-- **actuators**: one ``motor`` per non-free joint (on a hinge without limits a DC motor with a
-  no-load speed, :func:`robovae.data.actuators.speed_limited`). ``actuators="auto"``: in sets with
+- **actuators**: one ``motor`` per non-free joint (on a hinge without limits, when its control
+  range is ``(-1, 1)``, a DC motor with a no-load speed:
+  :func:`robovae.data.actuators.speed_limited`). ``actuators="auto"``: in sets with
   ``joint.actuated`` only the flagged joints, with their ``gear`` and ``ctrlrange``
   (``(0, 0)`` = unlimited), or, with ``joint.torque`` (``kinematic``), a gear of the joint's
   strength and the control range ``(-1, 1)``; elsewhere every non-free joint with
