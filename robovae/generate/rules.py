@@ -75,9 +75,7 @@ def _changed(before: np.ndarray, after: np.ndarray) -> bool:
     return bool(np.any((a != b) & ~(np.isnan(a) & np.isnan(b))))
 
 
-def _make_rule(name: str) -> Rule:
-    impl = _IMPL[name]
-
+def _make_rule(name: str, impl: Callable[[GraphView], None]) -> Rule:
     def rule(data: RobotTree, feature_set: str | FeatureSet = "paper34"
              ) -> tuple[RobotTree, bool]:
         v = _view(data, as_feature_set(feature_set))
@@ -93,7 +91,17 @@ def _make_rule(name: str) -> Rule:
 
 
 #: The rules, in the order :func:`apply_rules` runs them.
-RULES: dict[str, Rule] = {name: _make_rule(name) for name in _IMPL}
+RULES: dict[str, Rule] = {name: _make_rule(name, impl) for name, impl in _IMPL.items()}
+
+#: Not a rule (a slide without limits is valid) but a fix of decoded graphs
+#: (:mod:`robovae.generate.fixes`): every unlimited slide joint off the trunk gets the range
+#: ``±SLIDE_STROKE`` (:func:`robovae.generate.rules_joints.slide_limited`; sets without
+#: ``joint.type`` have no slides). ``(data, feature_set) -> (repaired copy, changed)``;
+#: raises ``ValueError`` as :func:`apply_rules`.
+slide_limited: Rule = _make_rule("slide_limited", rules_joints.slide_limited)
+slide_limited.__doc__ = ("Fix ``slide_limited`` (see :mod:`robovae.generate.rules_joints`; not "
+                         "one of :data:`RULES`): returns the repaired copy of ``data`` and "
+                         "whether anything changed.")
 
 
 def apply_rules(data: RobotTree, feature_set: str | FeatureSet = "paper34"
@@ -155,19 +163,4 @@ def floating_base(data: RobotTree, feature_set: str | FeatureSet = "paper34"
                 "joint.gear", "joint.ctrlrange"):
         if key.startswith("joint.") and v.has(key):
             v.set(0, key, 0.0)
-    return v.to_data(data), _changed(before, v.x)
-
-
-def slide_limited(data: RobotTree, feature_set: str | FeatureSet = "paper34"
-                  ) -> tuple[RobotTree, bool]:
-    """Give every unlimited slide joint off the trunk the range ``±SLIDE_STROKE``
-    (:func:`robovae.generate.rules_joints.slide_limited`; sets without ``joint.type`` have no
-    slides). Returns ``(repaired copy, changed)``.
-
-    Raises:
-        ValueError: as :func:`apply_rules`.
-    """
-    v = _view(data, as_feature_set(feature_set))
-    before = v.x.copy()
-    rules_joints.slide_limited(v)
     return v.to_data(data), _changed(before, v.x)

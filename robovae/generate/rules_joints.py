@@ -106,6 +106,13 @@ def _fix_range(lo: float, hi: float, low: float, high: float) -> tuple[float, fl
     return lo, hi
 
 
+def _decoded_limited(v: GraphView, i: int, has_flag: bool) -> bool:
+    """Whether joint ``i`` is limited as ``range_ordered`` reads it: its ``joint.limited`` flag
+    (where the set has one) at least 0.5 and a range end at least ``RANGE_ZERO`` from 0."""
+    flagged = not has_flag or v.get(i, "joint.limited")[0] >= 0.5
+    return bool(flagged and np.abs(v.get(i, "joint.range")).max() >= RANGE_ZERO)
+
+
 def range_ordered(v: GraphView) -> None:
     """Make every joint and control range unlimited or a valid limited range (module
     docstring)."""
@@ -118,9 +125,7 @@ def range_ordered(v: GraphView) -> None:
     types = view_joint_types(v)
     for i in v.nodes(JOINT):
         lo, hi = (float(a) for a in v.get(i, "joint.range"))
-        limited = (v.get(i, "joint.limited")[0] >= 0.5) if has_flag else (lo != 0 or hi != 0)
-        if has_flag and limited and max(abs(lo), abs(hi)) < RANGE_ZERO:
-            limited = False
+        limited = _decoded_limited(v, i, has_flag)
         if types[i] == "free":
             limited = False
         if not limited:
@@ -161,9 +166,7 @@ def slide_limited(v: GraphView) -> None:
     root_joints = set(link_structure(v.parent, v.types)[1][top]) if top >= 0 else set()
     has_flag = v.has("joint.limited")
     for i in slides:
-        limited = np.abs(v.get(i, "joint.range")).max() >= RANGE_ZERO and \
-            (not has_flag or v.get(i, "joint.limited")[0] >= 0.5)
-        if i in root_joints or limited:
+        if i in root_joints or _decoded_limited(v, i, has_flag):
             continue
         v.set(i, "joint.range", [-SLIDE_STROKE, SLIDE_STROKE])
         if has_flag:

@@ -30,6 +30,7 @@ from robovae.data.graph import RobotData, tree_data
 from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
+from robovae.evaluate.quality.locomotion import continuous_actuators
 from robovae.generate import writer as writer_module
 from robovae.generate.bodies import link_structure
 from robovae.generate.rules import apply_rules
@@ -478,9 +479,7 @@ def test_the_writer_gives_continuous_joints_dc_motors(fs):
     model = graph_to_spec(model_to_graph(original, fs), fs)[0].compile()
     affine = int(mujoco.mjtBias.mjBIAS_AFFINE)
     for m in (original, model):
-        on_joint = m.actuator_trntype == int(mujoco.mjtTrn.mjTRN_JOINT)
-        joint = m.actuator_trnid[:, 0]
-        free = on_joint & (m.jnt_type[joint] == 3) & (m.jnt_limited[joint] == 0)
+        free = continuous_actuators(m)
         assert free.sum() >= 2
         assert np.array_equal(m.actuator_biastype == affine, free)
         gear = m.actuator_gear[free, 0]
