@@ -110,7 +110,8 @@ UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth 
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
 #: (:func:`robovae.generate.fixes.decoded_fixes`), then the writer with its stance rules.
 WRITER = ("floating base (walk, stand), mirrored limbs, stance rules, spun discs as cylinders, "
-          "slide rails limited, DC motors on continuous joints (and procedural wheels)")
+          "slide rails limited, DC motors on continuous joints (and procedural wheels), "
+          "hanging wheels grounded")
 
 
 def procedural_seed(seed: int, index: int) -> int:

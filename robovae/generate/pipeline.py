@@ -228,8 +228,9 @@ def generate(
     (:func:`~robovae.model.prior.draw_robots`; rule ``redraw_unfinished``, ``draw`` in the
     record). ``prior``: ``mixture`` or ``standard`` (:data:`~robovae.model.vae.PRIORS`;
     default: the checkpoint's ``prior``); the prior actually used is recorded in ``run.json``.
-    ``stance``: a free-floating robot's soles are laid flat and a two-footed robot gets a
-    balanced ``home`` keyframe (:mod:`robovae.generate.stance`; rules ``level_soles``,
+    ``stance``: a free-floating robot's hanging wheels are lowered onto the floor, its soles
+    laid flat, and a two-footed robot gets a balanced ``home`` keyframe
+    (:mod:`robovae.generate.stance`; rules ``ground_wheels``, ``level_soles``,
     ``balance_home``).
     """
     if prior is not None and prior not in PRIORS:

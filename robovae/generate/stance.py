@@ -1,7 +1,7 @@
-"""Stance: a free-floating robot written with its soles flat on the floor and, when it stands
-on two feet, its centre of mass over them at rest.
+"""Stance: a free-floating robot written with its wheels on the floor, its soles flat on it
+and, when it stands on two feet, its centre of mass over them at rest.
 
-Two named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
+Three named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
 placement (:func:`robovae.generate.writer.graph_to_spec` with ``stance=True``; ``robovae
 generate`` asks for them, ``--no-stance`` does not). Each is reported per robot when it changes
 something. Both look at the robot's geometry at rest only, never at a simulation.
@@ -11,6 +11,18 @@ bottoms of a capsule's end spheres, a sphere's bottom, else the corners of the g
 box. The robot's size ``L`` is the diagonal of the box around all of them; its *support
 points* are those within :data:`SUPPORT_TOL` ``· L`` of the lowest: where the robot meets the
 floor once it has settled a little.
+
+``ground_wheels``
+    A decoded wheeled base often hangs some of its wheels above the floor (their mounts'
+    heights are decoded one by one): the base then rocks on one axle and tips. A *wheel* is a
+    body on a hinge without limits whose axis lies within 45° of horizontal at rest, with a
+    cylinder or sphere geom, mounted on the root body directly or through one body (a caster's
+    swivel) that carries nothing else: that child of the root is its *mount*. A wheel of
+    radius ``r`` whose lowest point lies at most ``r`` above the robot's lowest point, and
+    whose mount's lowest point (the wheel's, or a swivel's below it) lies more than
+    :data:`WHEEL_TOL` ``· r`` above it, is lowered by moving its mount straight down (its
+    position in the root's frame) until the mount's lowest point is on that level. Wheels
+    hanging higher than their radius are left: they are not meant to roll on the floor.
 
 ``level_soles``
     A decoded collision box is a few degrees off, and a foot that meets the floor on an edge
@@ -51,8 +63,8 @@ import numpy as np
 
 from robovae.generate.mjcf_numbers import mjcf_round_vector
 
-__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "SOLE_TOL", "SUPPORT_TOL", "at_qpos0",
-           "balance_home", "level_soles", "support_points"]
+__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "SOLE_TOL", "SUPPORT_TOL", "WHEEL_TOL",
+           "at_qpos0", "balance_home", "ground_wheels", "level_soles", "support_points"]
 
 #: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
@@ -69,7 +81,12 @@ _ANKLE_COS = math.cos(math.radians(45.0))
 _BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
 _CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
 _SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
+_CYLINDER = int(mujoco.mjtGeom.mjGEOM_CYLINDER)
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+#: A wheel hangs when its lowest point is more than this share of its radius above the lowest.
+WHEEL_TOL = 0.05
+#: A wheel's hinge axis is within 45° of horizontal.
+_WHEEL_AXIS_SIN = math.sin(math.radians(45.0))
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
 
@@ -137,6 +154,63 @@ def at_qpos0(model: mujoco.MjModel, data: mujoco.MjData | None = None) -> mujoco
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)
     return data
+
+
+def _mount(model: mujoco.MjModel, body: int, root: int) -> int | None:
+    """The child of ``root`` that carries ``body`` directly or through one body, else None."""
+    parent = int(model.body_parentid[body])
+    if parent == root:
+        return body
+    return parent if int(model.body_parentid[parent]) == root else None
+
+
+def _subtree(model: mujoco.MjModel, body: int) -> list[int]:
+    """``body`` and every body below it."""
+    out = [body]
+    for b in range(body + 1, model.nbody):  # MuJoCo numbers a child after its parent
+        if model.body_parentid[b] in out:
+            out.append(b)
+    return out
+
+
+def ground_wheels(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
+                  data: mujoco.MjData | None = None) -> bool:
+    """Lower hanging wheels onto the robot's lowest level (``ground_wheels``, module
+    docstring): moves their mounts in ``spec`` (``model``: ``spec`` compiled, ``root``: its
+    free-floating root body; ``data``: its kinematics at ``qpos0``, made here when not given).
+    Returns whether a mount moved (``spec`` then needs compiling again)."""
+    data = at_qpos0(model, data)
+    pts, owner = _points(model, data)
+    if not len(pts):
+        return False
+    low = float(pts[:, 2].min())
+    body_of = model.geom_bodyid[owner]
+    drop: dict[int, float] = {}  # mount -> how far it goes down
+    for j in np.flatnonzero((model.jnt_type == _HINGE) & (model.jnt_limited == 0)).tolist():
+        body = int(model.jnt_bodyid[j])
+        mount = _mount(model, body, root)
+        if mount is None or not model.body(mount).name \
+                or abs(float(data.xaxis[j, 2])) > _WHEEL_AXIS_SIN \
+                or set(_subtree(model, mount)) != {mount, body}:
+            continue
+        geoms = [g for g in range(model.body_geomadr[body],
+                                  model.body_geomadr[body] + model.body_geomnum[body])
+                 if model.geom_type[g] in (_CYLINDER, _SPHERE)]
+        if not geoms:
+            continue
+        radius = max(float(model.geom_size[g, 0]) for g in geoms)
+        gap = float(pts[np.isin(owner, geoms), 2].min()) - low
+        # the mount goes down until its lowest part (the wheel, or a swivel below it) is there
+        fall = float(pts[np.isin(body_of, (mount, body)), 2].min()) - low
+        if WHEEL_TOL * radius < fall and gap <= radius:
+            drop[mount] = fall
+    if not drop:
+        return False
+    to_root = data.xmat[root].reshape(3, 3).T  # world to the root's frame
+    for mount, gap in drop.items():
+        body = spec.body(model.body(mount).name)
+        body.pos = mjcf_round_vector(np.asarray(body.pos) + to_root @ np.array([0.0, 0.0, -gap]))
+    return True
 
 
 def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel,

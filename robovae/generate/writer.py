@@ -9,8 +9,8 @@ model is compiled, ``mj_forward`` run at ``qpos0``, and the lowest point over th
 (corners of each geom's bounding box ``geom_aabb`` in the world frame) is lifted to
 ``z = clearance`` (m) by shifting the free bodies' ``pos[2]``. This changes the root link's
 ``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it. With ``stance`` the
-stance rules run first (:mod:`robovae.generate.stance`: soles laid flat, then a ``home``
-keyframe lifted with the robot).
+stance rules run first (:mod:`robovae.generate.stance`: hanging wheels lowered onto the floor,
+soles laid flat, then a ``home`` keyframe lifted with the robot).
 
 **Round trip** (MJCF → graph → :func:`write_robot` → graph), within the 6-digit MJCF
 precision:
@@ -50,7 +50,7 @@ from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
-from robovae.generate.stance import at_qpos0, balance_home, level_soles
+from robovae.generate.stance import at_qpos0, balance_home, ground_wheels, level_soles
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
 
@@ -131,6 +131,10 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     placed = clearance is not None and bool(builder.free_bodies) and model.ngeom > 0
     # one MjData (about 0.35 ms to make) serves the stance rules and the floor placement
     data = at_qpos0(model) if stance or placed else None
+    if stance and ground_wheels(spec, model, robot_root(model)[0], data):
+        fired.append("ground_wheels")
+        model = _compile(spec)
+        data = at_qpos0(model)
     if stance and level_soles(spec, model, data):
         fired.append("level_soles")
         model = _compile(spec)
@@ -169,8 +173,9 @@ def graph_to_spec(
         clearance: lift free-floating robots so their lowest point is this high above
             ``z = 0``; ``None`` keeps the root link's position.
         self_collision: let the robot's geoms collide with each other (``conaffinity = 1``).
-        stance: a free-floating robot gets its soles laid flat and, standing on two feet, a
-            balanced ``home`` keyframe (:mod:`robovae.generate.stance`: ``level_soles``,
+        stance: a free-floating robot gets its hanging wheels lowered onto the floor, its soles
+            laid flat and, standing on two feet, a balanced ``home`` keyframe
+            (:mod:`robovae.generate.stance`: ``ground_wheels``, ``level_soles``,
             ``balance_home``).
 
     Returns:

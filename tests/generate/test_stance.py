@@ -19,7 +19,7 @@ from robovae.evaluate.quality.stage import rest_pose, robot_points, stage
 from robovae.evaluate.quality.standing import standing
 from robovae.evaluate.scene import prepare
 from robovae.generate.pipeline import generate
-from robovae.generate.stance import MAX_SOLE_TILT, support_points
+from robovae.generate.stance import MAX_SOLE_TILT, WHEEL_TOL, support_points
 from robovae.generate.writer import write_robot
 
 FS = get_feature_set("kinematic")
@@ -128,8 +128,65 @@ def test_balance_home_leans_the_biped_over_its_feet(tmp_path):
     env.close()
 
 
+def _raised_wheel(share: float, seed: int = 5, wheel: str = "wheel0l", mount: str = "wheel0l"):
+    """A procedural mobile manipulator whose ``wheel`` is mounted ``share`` of its radius
+    higher (``mount``, the root's child that carries it, moved: a decoder's imprecision), and
+    that wheel's radius."""
+    model = procedural_spec(seed, "mobile_manipulator").compile()
+    w, m = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in (wheel, mount))
+    radius = float(model.geom_size[model.body_geomadr[w], 0])
+    g = model_to_graph(model, FS, name="mm")
+    i = [k for k, (t, b) in enumerate(zip(g.node_type.tolist(), g.mj_id.tolist()))
+         if t == LINK and b == m][0]
+    x = g.x.clone()
+    x[i, FS.slice("link.pos").start + 2] += share * radius
+    out = g.clone()
+    out.x = x
+    return out, radius
+
+
+def _wheel_bottoms(path) -> tuple[np.ndarray, float, float]:
+    """The lowest points of the robot's wheels (bodies with a cylinder or sphere on hinges
+    without limits), the robot's lowest point and its size, at ``qpos0``."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    pts, owner, size = support_points(model, data, tol=10.0)  # every candidate point
+    round_ = (int(mujoco.mjtGeom.mjGEOM_CYLINDER), int(mujoco.mjtGeom.mjGEOM_SPHERE))
+    wheels = {int(model.jnt_bodyid[j]) for j in range(model.njnt)
+              if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and not model.jnt_limited[j]
+              and model.geom_type[model.body_geomadr[model.jnt_bodyid[j]]] in round_}
+    bottoms = [pts[model.geom_bodyid[owner] == b, 2].min() for b in sorted(wheels)]
+    return np.array(bottoms), float(pts[:, 2].min()), size
+
+
+@pytest.mark.parametrize("seed,wheel,mount,wheels", [(5, "wheel0l", "wheel0l", 4),
+                                                      (0, "caster1_wheel", "caster1", 6)])
+def test_ground_wheels_lowers_a_hanging_wheel_onto_the_floor(seed, wheel, mount, wheels,
+                                                             tmp_path):
+    g, radius = _raised_wheel(0.6, seed, wheel, mount)
+    off = _write(g, tmp_path / "off", stance=False)
+    on = _write(g, tmp_path / "on", stance=True)
+    assert "ground_wheels" in on.rules and "ground_wheels" not in off.rules
+    bottoms, low, _ = _wheel_bottoms(off.robot_path)
+    assert len(bottoms) == wheels
+    assert bottoms.max() - low == pytest.approx(0.6 * radius, rel=0.05)  # one wheel hangs
+    assert np.sort(bottoms)[-2] - low < WHEEL_TOL * radius
+    bottoms, low, _ = _wheel_bottoms(on.robot_path)
+    np.testing.assert_allclose(bottoms, low, atol=1e-5)  # every wheel on the floor
+    assert standing(on.robot_path).stands
+
+
+def test_a_wheel_hanging_higher_than_its_radius_is_left(tmp_path):
+    g, _ = _raised_wheel(1.5)
+    on = _write(g, tmp_path / "on", stance=True)
+    assert "ground_wheels" not in on.rules
+    assert on.robot_path.read_bytes() == _write(g, tmp_path / "off", False).robot_path.read_bytes()
+
+
 @pytest.mark.parametrize("seed,kind", [(0, "biped"), (2, "biped"), (3, "humanoid"),
-                                       (3, "quadruped"), (4, "hexapod")])
+                                       (3, "quadruped"), (4, "hexapod"),
+                                       (0, "mobile_manipulator"), (5, "mobile_manipulator")])
 def test_stance_leaves_robots_that_stand_alone(seed, kind, tmp_path):
     g = model_to_graph(procedural_spec(seed, kind).compile(), FS, name=kind)
     off = _write(g, tmp_path / "off", stance=False)
