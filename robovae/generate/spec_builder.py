@@ -133,6 +133,16 @@ class SpecBuilder:
         self._shapes: dict[int, tuple] | None = None  # link -> (size, box, thickness)
         self._continuous: set[str] = set()  # names of the hinges without limits
 
+    def move_links(self, shifts: dict[str, np.ndarray]) -> None:
+        """Move bodies ``link<i>`` by ``shifts[name]`` in their parents' frames (their
+        ``link.pos``, rounded as MJCF writes it), before :meth:`build`."""
+        pos = self.fs.slice("link.pos")
+        for name, shift in shifts.items():
+            i = name.removeprefix("link")
+            if not i.isdigit() or self.types[int(i)] != LINK:
+                raise ValueError(f"move_links: {name!r} is not a link body of this graph")
+            self.x[int(i), pos] = mjcf_round_vector(self.x[int(i), pos] + shift)
+
     def get(self, i: int, key: str) -> np.ndarray:
         """The columns of feature ``key`` of node ``i`` (rounded as MJCF writes them)."""
         return self.x[i, self.fs.slice(key)]

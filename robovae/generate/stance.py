@@ -18,11 +18,13 @@ floor once it has settled a little.
     body on a hinge without limits whose axis lies within 45° of horizontal at rest, with a
     cylinder or sphere geom, mounted on the root body directly or through one body (a caster's
     swivel) that carries nothing else: that child of the root is its *mount*. A wheel of
-    radius ``r`` whose lowest point lies at most ``r`` above the robot's lowest point, and
-    whose mount's lowest point (the wheel's, or a swivel's below it) lies more than
-    :data:`WHEEL_TOL` ``· r`` above it, is lowered by moving its mount straight down (its
-    position in the root's frame) until the mount's lowest point is on that level. Wheels
-    hanging higher than their radius are left: they are not meant to roll on the floor.
+    radius ``r`` whose lowest point lies at most :data:`MAX_WHEEL_DROP` ``· r`` above the
+    robot's lowest point, and whose mount's lowest point (the wheel's, or a swivel's below it)
+    lies more than :data:`WHEEL_TOL` ``· r`` above it, is lowered by moving its mount straight
+    down (its position in the root's frame) until the mount's lowest point is on that level;
+    the robot is then built again, so the geometry that joins the mount to the root reaches
+    it where it now is. Wheels hanging higher are left: they are not meant to roll on the
+    floor.
 
 ``level_soles``
     A decoded collision box is a few degrees off, and a foot that meets the floor on an edge
@@ -63,8 +65,9 @@ import numpy as np
 
 from robovae.generate.mjcf_numbers import mjcf_round_vector
 
-__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "SOLE_TOL", "SUPPORT_TOL", "WHEEL_TOL",
-           "at_qpos0", "balance_home", "ground_wheels", "level_soles", "support_points"]
+__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "MAX_WHEEL_DROP", "SOLE_TOL", "SUPPORT_TOL",
+           "WHEEL_TOL", "at_qpos0", "balance_home", "ground_wheels", "level_soles",
+           "support_points"]
 
 #: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
@@ -83,8 +86,11 @@ _CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
 _SPHERE = int(mujoco.mjtGeom.mjGEOM_SPHERE)
 _CYLINDER = int(mujoco.mjtGeom.mjGEOM_CYLINDER)
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
-#: A wheel hangs when its lowest point is more than this share of its radius above the lowest.
+#: A wheel hangs when its mount's lowest point is more than this share of its radius above the
+#: robot's lowest point.
 WHEEL_TOL = 0.05
+#: ``ground_wheels`` lowers wheels hanging at most this many radii above the lowest point.
+MAX_WHEEL_DROP = 4.0
 #: A wheel's hinge axis is within 45° of horizontal.
 _WHEEL_AXIS_SIN = math.sin(math.radians(45.0))
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
@@ -173,16 +179,17 @@ def _subtree(model: mujoco.MjModel, body: int) -> list[int]:
     return out
 
 
-def ground_wheels(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
-                  data: mujoco.MjData | None = None) -> bool:
-    """Lower hanging wheels onto the robot's lowest level (``ground_wheels``, module
-    docstring): moves their mounts in ``spec`` (``model``: ``spec`` compiled, ``root``: its
-    free-floating root body; ``data``: its kinematics at ``qpos0``, made here when not given).
-    Returns whether a mount moved (``spec`` then needs compiling again)."""
+def ground_wheels(model: mujoco.MjModel, root: int, data: mujoco.MjData | None = None
+                  ) -> dict[str, np.ndarray]:
+    """Where hanging wheels' mounts go (``ground_wheels``, module docstring): per mount body's
+    name, its displacement in the root's frame (empty when no wheel hangs). ``model``: the
+    robot compiled, ``root``: its free-floating root body; ``data``: its kinematics at
+    ``qpos0``, made here when not given. The writer builds the robot again with the mounts
+    moved, so that the geometry joining them to the root follows them."""
     data = at_qpos0(model, data)
     pts, owner = _points(model, data)
     if not len(pts):
-        return False
+        return {}
     low = float(pts[:, 2].min())
     body_of = model.geom_bodyid[owner]
     drop: dict[int, float] = {}  # mount -> how far it goes down
@@ -202,15 +209,10 @@ def ground_wheels(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
         gap = float(pts[np.isin(owner, geoms), 2].min()) - low
         # the mount goes down until its lowest part (the wheel, or a swivel below it) is there
         fall = float(pts[np.isin(body_of, (mount, body)), 2].min()) - low
-        if WHEEL_TOL * radius < fall and gap <= radius:
+        if WHEEL_TOL * radius < fall and gap <= MAX_WHEEL_DROP * radius:
             drop[mount] = fall
-    if not drop:
-        return False
     to_root = data.xmat[root].reshape(3, 3).T  # world to the root's frame
-    for mount, gap in drop.items():
-        body = spec.body(model.body(mount).name)
-        body.pos = mjcf_round_vector(np.asarray(body.pos) + to_root @ np.array([0.0, 0.0, -gap]))
-    return True
+    return {model.body(m).name: to_root @ np.array([0.0, 0.0, -d]) for m, d in drop.items()}
 
 
 def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel,

@@ -125,16 +125,19 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         data, fired = apply_rules(data, fs)
     builder = SpecBuilder(data, fs, name, actuators, self_collision)
     spec = builder.build()
-    fired += builder.fixes
     model = _compile(spec)
     stance = stance and bool(builder.free_bodies) and model.ngeom > 0
     placed = clearance is not None and bool(builder.free_bodies) and model.ngeom > 0
     # one MjData (about 0.35 ms to make) serves the stance rules and the floor placement
-    data = at_qpos0(model) if stance or placed else None
-    if stance and ground_wheels(spec, model, robot_root(model)[0], data):
-        fired.append("ground_wheels")
+    tree, data = data, at_qpos0(model) if stance or placed else None
+    shifts = ground_wheels(model, robot_root(model)[0], data) if stance else {}
+    if shifts:  # built again, the mounts moved: their bridges follow them
+        builder = SpecBuilder(tree, fs, name, actuators, self_collision)
+        builder.move_links(shifts)
+        spec = builder.build()
         model = _compile(spec)
         data = at_qpos0(model)
+    fired += builder.fixes + (["ground_wheels"] if shifts else [])
     if stance and level_soles(spec, model, data):
         fired.append("level_soles")
         model = _compile(spec)

@@ -15,11 +15,12 @@ import robovae.envs  # noqa: F401  (registers robovae/Walk-v0)
 from robovae.data.features import LINK, get_feature_set
 from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
+from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.quality.stage import rest_pose, robot_points, stage
 from robovae.evaluate.quality.standing import standing
 from robovae.evaluate.scene import prepare
 from robovae.generate.pipeline import generate
-from robovae.generate.stance import MAX_SOLE_TILT, WHEEL_TOL, support_points
+from robovae.generate.stance import MAX_SOLE_TILT, MAX_WHEEL_DROP, WHEEL_TOL, support_points
 from robovae.generate.writer import write_robot
 
 FS = get_feature_set("kinematic")
@@ -160,25 +161,27 @@ def _wheel_bottoms(path) -> tuple[np.ndarray, float, float]:
     return np.array(bottoms), float(pts[:, 2].min()), size
 
 
-@pytest.mark.parametrize("seed,wheel,mount,wheels", [(5, "wheel0l", "wheel0l", 4),
-                                                      (0, "caster1_wheel", "caster1", 6)])
-def test_ground_wheels_lowers_a_hanging_wheel_onto_the_floor(seed, wheel, mount, wheels,
+@pytest.mark.parametrize("seed,wheel,mount,wheels,share", [
+    (5, "wheel0l", "wheel0l", 4, 0.6), (0, "caster1_wheel", "caster1", 6, 2.5)])
+def test_ground_wheels_lowers_a_hanging_wheel_onto_the_floor(seed, wheel, mount, wheels, share,
                                                              tmp_path):
-    g, radius = _raised_wheel(0.6, seed, wheel, mount)
+    g, radius = _raised_wheel(share, seed, wheel, mount)
     off = _write(g, tmp_path / "off", stance=False)
     on = _write(g, tmp_path / "on", stance=True)
     assert "ground_wheels" in on.rules and "ground_wheels" not in off.rules
     bottoms, low, _ = _wheel_bottoms(off.robot_path)
     assert len(bottoms) == wheels
-    assert bottoms.max() - low == pytest.approx(0.6 * radius, rel=0.05)  # one wheel hangs
+    assert bottoms.max() - low == pytest.approx(share * radius, rel=0.05)  # one wheel hangs
     assert np.sort(bottoms)[-2] - low < WHEEL_TOL * radius
     bottoms, low, _ = _wheel_bottoms(on.robot_path)
     np.testing.assert_allclose(bottoms, low, atol=1e-5)  # every wheel on the floor
     assert standing(on.robot_path).stands
+    # built again with the mount moved: the bridge from the base reaches it
+    assert attachment(on.robot_path).all_attached
 
 
-def test_a_wheel_hanging_higher_than_its_radius_is_left(tmp_path):
-    g, _ = _raised_wheel(1.5)
+def test_a_wheel_hanging_higher_than_the_limit_is_left(tmp_path):
+    g, _ = _raised_wheel(MAX_WHEEL_DROP + 0.5)
     on = _write(g, tmp_path / "on", stance=True)
     assert "ground_wheels" not in on.rules
     assert on.robot_path.read_bytes() == _write(g, tmp_path / "off", False).robot_path.read_bytes()
