@@ -4,7 +4,7 @@ and, when it stands on two feet, its centre of mass over them at rest.
 Three named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
 placement (:func:`robovae.generate.writer.graph_to_spec` with ``stance=True``; ``robovae
 generate`` asks for them, ``--no-stance`` does not). Each is reported per robot when it changes
-something. Both look at the robot's geometry at rest only, never at a simulation.
+something. All three look at the robot's geometry at rest only, never at a simulation.
 
 **Support.** Each geom of the robot has candidate lowest points at rest: a box's corners, the
 bottoms of a capsule's end spheres, a sphere's bottom, else the corners of the geom's bounding
