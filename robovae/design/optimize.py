@@ -91,6 +91,7 @@ from robovae.design.results import (
 from robovae.design.score import SCORE_VERSION, TASKS, score_robot
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import model_fingerprint, worker_pool
+from robovae.generate.writer import WRITER as WRITTEN
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
@@ -109,9 +110,7 @@ RESTART_AFTER = 10
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
 #: (:func:`robovae.generate.fixes.decoded_fixes`), then the writer with its stance rules.
-WRITER = ("floating base (walk, stand), mirrored limbs, stance rules, spun discs as cylinders, "
-          "slide rails limited, DC motors on continuous joints (and procedural wheels), "
-          "hanging wheels grounded")
+WRITER = "floating base (walk, stand), mirrored limbs, stance rules, " + WRITTEN
 
 
 def procedural_seed(seed: int, index: int) -> int:

@@ -54,6 +54,7 @@ from robovae.generate.pipeline import (
     summarize,
     write_records,
 )
+from robovae.generate.writer import WRITER
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
 
@@ -112,7 +113,7 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     out = Path(out)
     digest = hashlib.sha256(Path(robot).read_bytes()).hexdigest()
     claim(out, {"model": model_fingerprint(model), "like": digest, "radius": radius,
-                "seed": seed, "floating": floating}, overwrite)
+                "seed": seed, "floating": floating, "writer": WRITER}, overwrite)
     model = model.to(torch.float64)  # as robovae generate: a robot never depends on its batch
     mu, w = mu.to(torch.float64), w.to(torch.float64)
     todo = [i for i in range(n) if i not in read_manifest(out)]

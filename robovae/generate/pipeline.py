@@ -5,8 +5,10 @@
 latent is drawn from its own generator seeded by ``(seed, i)``, so a robot does not depend on
 batch size, on which robots were already done, or on the process that made it: re-running
 skips the robots already in the manifest (resume after a crash), and the same checkpoint +
-seed give byte-identical files. Manifest lines are flushed and fsync'ed per batch; robot
-folders are complete before their manifest line is written.
+seed give byte-identical files. A folder of another run (``run.json``: model, seed, sampling
+settings and the writer, :data:`~robovae.generate.writer.WRITER`) is refused unless
+``overwrite``. Manifest lines are flushed and fsync'ed per batch; robot folders are complete
+before their manifest line is written.
 
 With worker processes the main process decodes batch ``k + 1`` while the workers write,
 validate and measure batch ``k`` (the next batch is queued before the previous one is
@@ -45,6 +47,7 @@ from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.build import build_robot, warm_up
 from robovae.generate.fixes import decoded_fixes
+from robovae.generate.writer import WRITER
 from robovae.model.checkpoint import load_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import PRIORS, RoboVAE
@@ -254,7 +257,7 @@ def generate(
     run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
            "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
            "node_temperature": node_temperature, "redraws": redraws,
-           "prior": prior_name(model), "stance": stance}
+           "prior": prior_name(model), "stance": stance, "writer": WRITER}
     if validate and controls != "zero":  # folders validated with zero controls resume
         run["validation"] = controls
     claim(out, run, overwrite)

@@ -42,6 +42,7 @@ from robovae.generate.pipeline import (
     worker_pool,
     write_records,
 )
+from robovae.generate.writer import WRITER
 
 
 class _Float32Weights:
@@ -97,7 +98,7 @@ class RobotWriter(BasePredictionWriter):
                "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
                "node_temperature": pl_module.hparams.get("node_temperature"),
                "redraws": int(hp.predict_redraws),
-               "prior": prior_name(pl_module), "stance": True}
+               "prior": prior_name(pl_module), "stance": True, "writer": WRITER}
         refused = None
         if trainer.is_global_zero:
             try:

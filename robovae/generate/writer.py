@@ -89,6 +89,13 @@ class WriteResult:
                 "actuators": self.n_actuators}
 
 
+#: What the writer's files depend on beyond the graph, named change by change: a generation
+#: folder (``run.json``) and an optimisation log record it, so that neither is continued with
+#: robots written another way. Name each change that alters written files here.
+WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous joints (and "
+          "procedural wheels), hanging wheels grounded")
+
+
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
     with capture_mujoco_warnings():
         try:

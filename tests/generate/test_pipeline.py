@@ -25,6 +25,7 @@ from robovae.generate.pipeline import (
 )
 from robovae.generate.predict import RobotWriter
 from robovae.generate.validate import REASONS
+from robovae.generate.writer import WRITER
 
 
 def _files(out: Path) -> dict[str, bytes]:
@@ -259,6 +260,25 @@ def test_a_folder_of_another_run_is_refused_unless_overwrite(trained, tmp_path):
         "robot_000000", "robot_000001"]
     assert (out / "notes.txt").read_text() == "mine"
     assert json.loads((out / RUN).read_text())["seed"] == 1
+
+
+def test_a_folder_written_by_another_writer_is_refused_unless_overwrite(trained, tmp_path):
+    """Robots written before a writer change are not resumed as if they were this writer's
+    (training is deterministic: the README main job re-run after an upgrade meets the same
+    checkpoint in the same folder)."""
+    _, _, ckpt = trained
+    out = tmp_path / "gen"
+    generate(ckpt, 3, out, seed=0, validate=False, progress=False)
+    run = json.loads((out / RUN).read_text())
+    assert run["writer"] == WRITER
+    del run["writer"]  # as a robovae of before this field wrote it
+    (out / RUN).write_text(json.dumps(run))
+    with pytest.raises(RobovaeError, match="writer differ"):
+        generate(ckpt, 3, out, seed=0, validate=False, progress=False)
+    assert sorted(read_manifest(out)) == [0, 1, 2]  # nothing lost
+    report = generate(ckpt, 3, out, seed=0, validate=False, progress=False, overwrite=True)
+    assert report.new == 3
+    assert json.loads((out / RUN).read_text())["writer"] == WRITER
 
 
 def test_the_validation_is_part_of_the_run(trained, tmp_path):
