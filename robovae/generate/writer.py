@@ -136,25 +136,26 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     stance = stance and bool(builder.free_bodies) and model.ngeom > 0
     placed = clearance is not None and bool(builder.free_bodies) and model.ngeom > 0
     # one MjData (about 0.35 ms to make) serves the stance rules and the floor placement
-    tree, data = data, at_qpos0(model) if stance or placed else None
-    shifts = ground_wheels(model, robot_root(model)[0], data) if stance else {}
+    kin = at_qpos0(model) if stance or placed else None
+    root = robot_root(model)[0] if stance else -1  # the same body when built again
+    shifts = ground_wheels(model, root, kin) if stance else {}
     if shifts:  # built again, the mounts moved: their bridges follow them
-        builder = SpecBuilder(tree, fs, name, actuators, self_collision)
+        builder = SpecBuilder(data, fs, name, actuators, self_collision)
         builder.move_links(shifts)
         spec = builder.build()
         model = _compile(spec)
-        data = at_qpos0(model)
+        kin = at_qpos0(model)
     fired += builder.fixes + (["ground_wheels"] if shifts else [])
-    if stance and level_soles(spec, model, data):
+    if stance and level_soles(spec, model, kin):
         fired.append("level_soles")
         model = _compile(spec)
-        data = at_qpos0(model)
+        kin = at_qpos0(model)
     dz = 0.0
     if placed:
-        dz = clearance - _lowest_point(model, data)
+        dz = clearance - _lowest_point(model, kin)
         for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]
-    if stance and balance_home(spec, model, robot_root(model)[0], lift=dz, data=data):
+    if stance and balance_home(spec, model, root, lift=dz, data=kin):
         fired.append("balance_home")
     return spec, model, fired
 
