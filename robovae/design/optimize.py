@@ -44,7 +44,9 @@ and costs no evaluation: a prior sample redraws its ``z`` as ``robovae generate`
 for candidates out of bounds), so a generation is ranked on robots. A latent still unfinished
 after that scores 0 with ``error`` :data:`UNFINISHED`, without simulation. Evaluation
 runs in ``jobs`` worker processes (``spawn``), one round at a time: a CMA generation and as
-many prior and procedural robots, with a progress bar.
+many prior and procedural robots, with a progress bar. This process decodes and prepares each
+candidate (:meth:`_Run.prepare`: generate's fixes, or the procedural robot's MJCF); the workers
+(:func:`robovae.design.candidates.evaluate`) write and score them without importing torch.
 
 Output folder ``out``:
 
@@ -79,6 +81,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from robovae.data.tree_arrays import TreeArrays
+from robovae.design.candidates import evaluate, failed
 from robovae.design.results import (
     HELDOUT_SEEDS,
     METHODS,
@@ -88,7 +92,7 @@ from robovae.design.results import (
     plot,
     write_best,
 )
-from robovae.design.score import SCORE_VERSION, TASKS, score_robot
+from robovae.design.score import SCORE_VERSION, TASKS
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.generate.writer import WRITER as WRITTEN
@@ -132,45 +136,6 @@ def score_seeds(sets: int) -> list[int]:
     """The score seeds of a run with ``sets`` score sets: 0, then 9, 10, … (never one of the
     held-out seeds :data:`HELDOUT_SEEDS`, 1–8)."""
     return [0] + list(range(max(HELDOUT_SEEDS) + 1, max(HELDOUT_SEEDS) + sets))
-
-
-def _scored(path: Path, task: str, seeds: Sequence[int]) -> dict:
-    """The score of a robot file under ``seeds``: seed ``seeds[0]``'s result (details, error),
-    its score replaced, with more than one seed, by the median of the seeds' scores (all of them
-    in ``scores``; a robot that fails under the first seed is not scored again)."""
-    res = score_robot(path, task, seed=seeds[0])
-    if len(seeds) > 1:
-        scores = [res["score"]] + ([score_robot(path, task, seed=s)["score"] for s in seeds[1:]]
-                                   if res.get("error") is None else [0.0] * (len(seeds) - 1))
-        res.update(score=float(np.median(scores)), scores=scores)
-    return res
-
-
-def _evaluate(item: tuple) -> dict:
-    """Write one candidate into a scratch folder, score it, delete the folder (worker)."""
-    method, payload, folder, fs_name, task, floating, seeds = item
-    from robovae.generate.writer import write_robot
-
-    folder = Path(folder)
-    try:
-        if method == "procedural":
-            from robovae.data.procedural import procedural_spec
-
-            folder.mkdir(parents=True, exist_ok=True)
-            (folder / "robot.xml").write_text(procedural_spec(payload).to_xml())
-        else:
-            from robovae.generate.fixes import decoded_fixes
-
-            graph = decoded_fixes(payload, fs_name, floating=floating)[0]
-            write_robot(graph, folder, fs_name, name=folder.name, scene=False, stance=True)
-        res = _scored(folder / "robot.xml", task, seeds)
-        if res.get("error"):  # the scratch file is gone: name the candidate, not the file
-            res["error"] = res["error"].replace(f"{folder / 'robot.xml'}: ", "")
-        return res
-    except Exception as e:  # an unwritable candidate scores 0
-        return {"score": 0.0, "error": " ".join(f"writer: {type(e).__name__}: {e}".split())}
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _atomic_json(path: Path, obj: dict) -> None:
@@ -307,6 +272,23 @@ class _Run:
         z = torch.as_tensor(np.stack(zs), dtype=torch.float64)
         return self.model.decode(z)
 
+    def prepare(self, method: str, payload) -> TreeArrays | str | dict:
+        """What a worker writes for a candidate (:func:`robovae.design.candidates.evaluate`):
+        a decoded graph with ``robovae generate``'s fixes (floating base for walk and stand,
+        mirrored limbs) as :class:`TreeArrays`, a procedural robot's MJCF text; or, when that
+        fails, the candidate's record (score 0)."""
+        try:
+            if method == "procedural":
+                from robovae.data.procedural import procedural_spec
+
+                return procedural_spec(payload).to_xml()
+            from robovae.generate.fixes import decoded_fixes
+
+            graph = decoded_fixes(payload, self.model.feature_set, floating=self.floating)[0]
+            return TreeArrays.of(graph)
+        except Exception as e:  # an unwritable candidate scores 0
+            return failed(e)
+
     def round(self, pool) -> int:
         """One CMA-ES generation plus as many baseline robots; returns evaluations done."""
         ev = self.log["evaluations"]
@@ -337,14 +319,21 @@ class _Run:
         if not jobs:
             return 0
         work = self.out / ".work"
-        items = [(m, graphs.get(k, p), str(work / f"{m}_{i:06d}"), self.model.feature_set.name,
-                  self.task, self.floating, self.seeds) for k, (m, i, p) in enumerate(jobs)]
-        cut = {k for k, g in graphs.items() if unfinished(self.model, g)}
-        scored = [x for k, x in enumerate(items) if k not in cut]
-        results = iter(list(pool.map(_evaluate, scored)) if pool else
-                       [_evaluate(x) for x in scored])
+        done: dict[int, dict] = {k: {"score": 0.0, "error": UNFINISHED} for k, g in graphs.items()
+                                 if unfinished(self.model, g)}
+        items: dict[int, tuple] = {}
         for k, (m, i, p) in enumerate(jobs):
-            res = {"score": 0.0, "error": UNFINISHED} if k in cut else next(results)
+            if k not in done:
+                robot = self.prepare(m, graphs.get(k, p))
+                if isinstance(robot, dict):
+                    done[k] = robot
+                else:
+                    items[k] = (robot, str(work / f"{m}_{i:06d}"), self.model.feature_set.name,
+                                self.task, self.seeds)
+        todo = list(items.values())
+        done.update(zip(items, pool.map(evaluate, todo) if pool else map(evaluate, todo)))
+        for k, (m, i, p) in enumerate(jobs):
+            res = done[k]
             rec = {"index": i, **res}
             rec.update({"seed": p} if m == "procedural" else
                        {"z": [float(v) for v in p]})

@@ -25,10 +25,10 @@ measures being written in :mod:`robovae.evaluate` can replace these behind the s
   power that gait's actuators deliver while its distance counts, ``mass`` the robot's (kg).
   (The quality table's locomotion measure searches 64 gaits of 4 s and does not stop at
   falls.)
-- **stand** (:func:`stand_score`): :func:`robovae.evaluate.behaviour.standing_test` for 3 s
-  (joints PD-held at ``qpos0`` with the robot's own torque limits); ``score`` is the lowest
-  root height over the test as a fraction of its height at ``qpos0`` (``min_height_ratio``),
-  0 when unstable or not floating.
+- **stand** (:func:`stand_score`): the standing test
+  (:func:`robovae.evaluate.quality.standing.standing`) for 3 s (joints PD-held at their rest
+  pose with the robot's own torque limits); ``score`` is the lowest root height over the test
+  as a fraction of its height at rest (``min_height_ratio``), 0 when unstable or not floating.
 - **reach** (:func:`reach_score`): for a fixed-base arm, the volume of the convex hull of the
   end-effector positions over ``samples`` (512) joint configurations drawn uniformly within
   the joint ranges (unlimited hinges: ``[-pi, pi]``; free joints stay at ``qpos0``), divided by
@@ -106,13 +106,13 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
 
 def stand_score(path: str | os.PathLike, seed: int = 0, seconds: float = 3.0) -> dict:
     """Lowest root height kept over a 3 s PD-held standing test (module docstring)."""
-    from robovae.evaluate.behaviour import standing_test
+    from robovae.evaluate.quality.standing import standing
 
-    res = standing_test(path, seconds=seconds)
-    ratio = res.get("min_height_ratio")
-    ok = res["floating"] and not res["unstable"] and ratio is not None and math.isfinite(ratio)
-    return {"score": max(0.0, float(ratio)) if ok else 0.0, "stands": res["stands"],
-            "floating": res["floating"]}
+    res = standing(path, seconds=seconds)
+    ratio = res.min_height_ratio
+    ok = res.floating and not res.unstable and ratio is not None and math.isfinite(ratio)
+    return {"score": max(0.0, float(ratio)) if ok else 0.0, "stands": res.stands,
+            "floating": res.floating}
 
 
 def _deepest_body(model: mujoco.MjModel) -> int:

@@ -218,6 +218,47 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
     assert started == []
 
 
+def test_a_worker_scores_candidates_without_torch(tmp_path):
+    """What a worker process of ``robovae optimize`` does (:func:`robovae.design.candidates.
+    evaluate`), in a fresh interpreter given pickled items: a decoded-and-fixed graph as
+    :class:`TreeArrays` and a procedural robot's MJCF text are written, scored as in this
+    process and deleted, and neither torch nor PyG is ever imported; a graph the writer cannot
+    take scores 0 with a one-line error."""
+    import pickle
+    import subprocess
+    import sys
+
+    from robovae.data.mjcf import model_to_graph
+    from robovae.data.tree_arrays import TreeArrays
+    from robovae.design.candidates import evaluate
+
+    graph = model_to_graph(procedural_spec(3, kind="quadruped").compile(), "kinematic")
+    arrays = TreeArrays.of(decoded_fixes(graph, "kinematic")[0])
+    broken = arrays.with_x(arrays.x[:, :3])  # fewer feature columns than the set has
+    items = [(arrays, str(tmp_path / "a"), "kinematic", "walk", [0]),
+             (procedural_spec(3, kind="quadruped").to_xml(), str(tmp_path / "b"), "kinematic",
+              "stand", [0]),
+             (broken, str(tmp_path / "c"), "kinematic", "stand", [0])]
+    (tmp_path / "items.pkl").write_bytes(pickle.dumps(items))
+    script = (
+        "import pickle, sys, json\n"
+        "from robovae.design.candidates import evaluate\n"
+        f"items = pickle.loads(open({str(tmp_path / 'items.pkl')!r}, 'rb').read())\n"
+        "print(json.dumps({'results': [evaluate(x) for x in items],\n"
+        "  'loaded': [m for m in ('torch', 'torch_geometric') if m in sys.modules]}))\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["loaded"] == []
+    here = json.loads(json.dumps([evaluate(x) for x in items]))
+    assert got["results"] == here
+    assert here[0]["score"] > 0 and here[0]["error"] is None and here[0]["frequency"]
+    assert here[1]["score"] > 0.5 and here[1]["stands"]
+    assert here[2]["score"] == 0 and here[2]["error"].startswith("writer: ")
+    assert "\n" not in here[2]["error"]
+    assert not any((tmp_path / k).exists() for k in "abc")  # scratch folders deleted
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--task", "fly", "--budget", "2"], "unknown task 'fly'"),
     (["--task", "walk", "--budget", "0"], "--budget must be > 0"),
