@@ -234,7 +234,7 @@ def generate(
     ``stance``: a free-floating robot's hanging wheels are lowered onto the floor, its soles
     laid flat, and a two-footed robot gets a balanced ``home`` keyframe
     (:mod:`robovae.generate.stance`; rules ``ground_wheels``, ``level_soles``,
-    ``balance_home``).
+    ``level_stilts``, ``balance_home``).
     """
     if prior is not None and prior not in PRIORS:
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")

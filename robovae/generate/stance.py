@@ -1,10 +1,10 @@
 """Stance: a free-floating robot written with its wheels on the floor, its soles flat on it
-and, when it stands on two feet, its centre of mass over them at rest.
+and, when it stands on two feet, its stilts upright and its centre of mass over them at rest.
 
-Three named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
+Four named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
 placement (:func:`robovae.generate.writer.graph_to_spec` with ``stance=True``; ``robovae
 generate`` asks for them, ``--no-stance`` does not). Each is reported per robot when it changes
-something. All three look at the robot's geometry at rest only, never at a simulation.
+something. All four look at the robot's geometry at rest only, never at a simulation.
 
 **Support.** Each geom of the robot has candidate lowest points at rest: a box's corners, the
 bottoms of a capsule's end spheres, a sphere's bottom, else the corners of the geom's bounding
@@ -37,6 +37,18 @@ floor once it has settled a little.
     the rotation taking the box axis nearest to vertical onto ``+z``); its size and centre are
     kept.
 
+``level_stilts``
+    A biped whose legs end in boxes standing on their end (a *stilt*: a box of a leaf link
+    whose lowest corner lies within :data:`SOLE_TOL` ``· L`` of the robot's lowest point and
+    whose axis nearest to vertical is its longest) meets the floor on two edges and tips over
+    however its centre of mass lies. When the robot is a biped — its candidate lowest points
+    within :data:`BIPED_TOL` ``· L`` of the lowest belong to exactly two limbs of the root body
+    (two legs, and no third limb or the body itself near the floor) — each such stilt tilted by
+    ``0 < α ≤`` :data:`MAX_SOLE_TILT` from vertical is turned about its centre as
+    ``level_soles`` turns a sole, so that it stands on its end face. Only then: a robot on
+    more legs stands on their edges, and its shins keep their slant (the procedural
+    quadrupeds' and hexapods' do, and so do decoded ones with two of four feet on the floor).
+
 ``balance_home``
     A robot whose support points belong to exactly two limbs of the root body (two legs), each
     with a hinge at or above its foot whose axis lies within 45° of the *lateral* axis (from
@@ -65,9 +77,9 @@ import numpy as np
 
 from robovae.generate.mjcf_numbers import mjcf_round_vector
 
-__all__ = ["BALANCED", "MAX_ANKLE", "MAX_SOLE_TILT", "MAX_WHEEL_DROP", "SOLE_TOL", "SUPPORT_TOL",
-           "WHEEL_TOL", "at_qpos0", "balance_home", "ground_wheels", "level_soles",
-           "support_points"]
+__all__ = ["BALANCED", "BIPED_TOL", "MAX_ANKLE", "MAX_SOLE_TILT", "MAX_WHEEL_DROP", "SOLE_TOL",
+           "SUPPORT_TOL", "WHEEL_TOL", "at_qpos0", "balance_home", "ground_wheels", "level_soles",
+           "level_stilts", "support_points"]
 
 #: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
@@ -75,6 +87,8 @@ SOLE_TOL = 0.02
 MAX_SOLE_TILT = 30.0
 #: Support points lie within this share of the robot's size L of its lowest point.
 SUPPORT_TOL = 0.03
+#: ``level_stilts``: a biped's points within this share of L of its lowest lie on two limbs.
+BIPED_TOL = 0.10
 #: ``balance_home`` leaves a centre of mass inside this middle share of the soles' extent.
 BALANCED = 0.5
 #: Largest ankle turn (rad) of ``balance_home``.
@@ -215,6 +229,48 @@ def ground_wheels(model: mujoco.MjModel, root: int, data: mujoco.MjData | None =
     return {model.body(m).name: to_root @ np.array([0.0, 0.0, -d]) for m, d in drop.items()}
 
 
+def _floor_boxes(model: mujoco.MjModel, data: mujoco.MjData, on_end: bool
+                 ) -> list[tuple[int, np.ndarray, float]]:
+    """The named box geoms of leaf links whose lowest corner lies within :data:`SOLE_TOL`
+    ``· L`` of the robot's lowest point, lying (``on_end=False``: the axis nearest to vertical is
+    not the longest) or standing on their end (``on_end=True``), tilted by ``0 < tilt <=``
+    :data:`MAX_SOLE_TILT` degrees: ``(geom, up, tilt)``, ``up`` the box axis nearest to
+    vertical, pointing up (world frame)."""
+    pts, owner = _points(model, data)
+    if not len(pts):
+        return []
+    low, ext = float(pts[:, 2].min()), _extent(pts)
+    leaves = _leaves(model)
+    out = []
+    for g in np.unique(owner[pts[:, 2] <= low + SOLE_TOL * ext]).tolist():
+        if model.geom_type[g] != _BOX or int(model.geom_bodyid[g]) not in leaves \
+                or not model.geom(g).name:
+            continue
+        rot = data.geom_xmat[g].reshape(3, 3)
+        k = int(np.argmax(np.abs(rot[2])))
+        if (model.geom_size[g, k] >= model.geom_size[g].max()) != on_end:
+            continue
+        up = rot[:, k] * np.sign(rot[2, k])
+        tilt = math.degrees(math.acos(min(1.0, float(up[2]))))
+        if 1e-3 < tilt <= MAX_SOLE_TILT:
+            out.append((g, up, tilt))
+    return out
+
+
+def _lay_flat(spec: mujoco.MjSpec, model: mujoco.MjModel, data: mujoco.MjData, g: int,
+              up: np.ndarray) -> None:
+    """Turn box geom ``g`` of ``spec`` about its centre by the smallest rotation that takes its
+    axis ``up`` onto ``+z`` (``R' = R_α R``): the face across that axis becomes horizontal."""
+    q_turn, q_world, q_body, q_local = (np.zeros(4) for _ in range(4))
+    mujoco.mju_quatZ2Vec(q_turn, up)  # the rotation taking +z onto `up`; its inverse levels
+    mujoco.mju_negQuat(q_turn, q_turn)
+    mujoco.mju_mat2Quat(q_world, data.geom_xmat[g].reshape(9))
+    mujoco.mju_mulQuat(q_world, q_turn, q_world)
+    mujoco.mju_negQuat(q_body, data.xquat[int(model.geom_bodyid[g])])
+    mujoco.mju_mulQuat(q_local, q_body, q_world)
+    spec.geom(model.geom(g).name).quat = mjcf_round_vector(q_local)
+
+
 def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel,
                 data: mujoco.MjData | None = None) -> bool:
     """Lay the robot's soles flat (``level_soles``, module docstring): changes the quaternions
@@ -222,35 +278,28 @@ def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel,
     ``qpos0``, made here when not given). Returns whether a sole was turned (``spec`` then needs
     compiling again)."""
     data = at_qpos0(model, data)
-    pts, owner = _points(model, data)
-    if not len(pts):
+    soles = _floor_boxes(model, data, on_end=False)
+    for g, up, _ in soles:
+        _lay_flat(spec, model, data, g, up)
+    return bool(soles)
+
+
+def level_stilts(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
+                 data: mujoco.MjData | None = None) -> bool:
+    """Stand a biped's stilts straight (``level_stilts``, module docstring): changes the
+    quaternions of the stilt geoms of ``spec`` when the robot is a biped, its points within
+    :data:`BIPED_TOL` ``· L`` of its lowest point on exactly two limbs of ``root`` (``model``:
+    ``spec`` compiled; ``data``: its kinematics at ``qpos0``, made here when not given). Returns
+    whether a stilt was turned."""
+    data = at_qpos0(model, data)
+    near = support_points(model, data, tol=BIPED_TOL)[1]
+    legs = {_limb(model, int(model.geom_bodyid[g]), root) for g in near}
+    if len(legs) != 2 or root in legs:
         return False
-    low, ext = float(pts[:, 2].min()), _extent(pts)
-    leaves = _leaves(model)
-    turned = False
-    for g in np.unique(owner[pts[:, 2] <= low + SOLE_TOL * ext]).tolist():
-        body = int(model.geom_bodyid[g])
-        name = model.geom(g).name
-        if model.geom_type[g] != _BOX or body not in leaves or not name:
-            continue
-        rot = data.geom_xmat[g].reshape(3, 3)
-        k = int(np.argmax(np.abs(rot[2])))
-        if model.geom_size[g, k] >= model.geom_size[g].max():  # a leg standing on its end
-            continue
-        up = rot[:, k] * np.sign(rot[2, k])
-        tilt = math.degrees(math.acos(min(1.0, float(up[2]))))
-        if tilt <= 1e-3 or tilt > MAX_SOLE_TILT:
-            continue
-        q_turn, q_world, q_body, q_local = (np.zeros(4) for _ in range(4))
-        mujoco.mju_quatZ2Vec(q_turn, up)  # the rotation taking +z onto `up`; its inverse levels
-        mujoco.mju_negQuat(q_turn, q_turn)
-        mujoco.mju_mat2Quat(q_world, rot.reshape(9))
-        mujoco.mju_mulQuat(q_world, q_turn, q_world)
-        mujoco.mju_negQuat(q_body, data.xquat[body])
-        mujoco.mju_mulQuat(q_local, q_body, q_world)
-        spec.geom(name).quat = mjcf_round_vector(q_local)
-        turned = True
-    return turned
+    stilts = _floor_boxes(model, data, on_end=True)
+    for g, up, _ in stilts:
+        _lay_flat(spec, model, data, g, up)
+    return bool(stilts)
 
 
 def _limb(model: mujoco.MjModel, body: int, root: int) -> int:

@@ -50,7 +50,7 @@ from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
-from robovae.generate.stance import at_qpos0, balance_home, ground_wheels, level_soles
+from robovae.generate.stance import at_qpos0, balance_home, ground_wheels, level_soles, level_stilts
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
 
@@ -93,7 +93,7 @@ class WriteResult:
 #: folder (``run.json``) and an optimisation log record it, so that neither is continued with
 #: robots written another way. Name each change that alters written files here.
 WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous joints (and "
-          "procedural wheels), hanging wheels grounded")
+          "procedural wheels), hanging wheels grounded, biped stilts levelled")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
@@ -146,10 +146,14 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         model = _compile(spec)
         kin = at_qpos0(model)
     fired += builder.fixes + (["ground_wheels"] if shifts else [])
-    if stance and level_soles(spec, model, kin):
-        fired.append("level_soles")
-        model = _compile(spec)
-        kin = at_qpos0(model)
+    if stance:
+        levelled = [name for name, fires in (("level_soles", level_soles(spec, model, kin)),
+                                             ("level_stilts", level_stilts(spec, model, root, kin)))
+                    if fires]
+        if levelled:
+            fired += levelled
+            model = _compile(spec)
+            kin = at_qpos0(model)
     dz = 0.0
     if placed:
         dz = clearance - _lowest_point(model, kin)
@@ -185,9 +189,9 @@ def graph_to_spec(
             ``z = 0``; ``None`` keeps the root link's position.
         self_collision: let the robot's geoms collide with each other (``conaffinity = 1``).
         stance: a free-floating robot gets its hanging wheels lowered onto the floor, its soles
-            laid flat and, standing on two feet, a balanced ``home`` keyframe
-            (:mod:`robovae.generate.stance`: ``ground_wheels``, ``level_soles``,
-            ``balance_home``).
+            laid flat and, standing on two feet, its stilts stood on their ends and a balanced
+            ``home`` keyframe (:mod:`robovae.generate.stance`: ``ground_wheels``,
+            ``level_soles``, ``level_stilts``, ``balance_home``).
 
     Returns:
         The spec (already compiled once, so ``spec.to_xml()`` works) and the names of the rules

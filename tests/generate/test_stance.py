@@ -1,4 +1,5 @@
-"""The writer's stance rules (robovae.generate.stance): soles laid flat, a balanced home pose."""
+"""The writer's stance rules (robovae.generate.stance): wheels grounded, soles laid flat, biped
+stilts stood on their ends, a balanced home pose."""
 
 from __future__ import annotations
 
@@ -20,18 +21,24 @@ from robovae.evaluate.quality.stage import rest_pose, robot_points, stage
 from robovae.evaluate.quality.standing import standing
 from robovae.evaluate.scene import prepare
 from robovae.generate.pipeline import generate
-from robovae.generate.stance import MAX_SOLE_TILT, MAX_WHEEL_DROP, WHEEL_TOL, support_points
+from robovae.generate.stance import (
+    MAX_SOLE_TILT,
+    MAX_WHEEL_DROP,
+    WHEEL_TOL,
+    at_qpos0,
+    support_points,
+)
+from robovae.generate.stance import _floor_boxes as floor_boxes
 from robovae.generate.writer import write_robot
 
 FS = get_feature_set("kinematic")
 _I, _J = (0, 1, 2, 0, 0, 1), (0, 1, 2, 1, 2, 2)
 
 
-def _biped(tilt_deg: float = 0.0, com_shift: float = 0.0):
-    """A procedural biped whose feet boxes are pitched by ``tilt_deg`` and whose pelvis' centre
-    of mass is moved ``com_shift`` m along x (what a decoder's imprecision does), and the names
-    of its MuJoCo bodies."""
-    model = procedural_spec(1, "biped").compile()
+def _biped(tilt_deg: float = 0.0, com_shift: float = 0.0, seed: int = 1):
+    """Procedural biped ``seed`` with its feet boxes pitched by ``tilt_deg`` and its pelvis'
+    centre of mass moved ``com_shift`` m along x (what a decoder's imprecision does)."""
+    model = procedural_spec(seed, "biped").compile()
     g = model_to_graph(model, FS, name="biped")
     names = [model.body(b).name for b in range(model.nbody)]
     x = g.x.numpy().astype(np.float64)
@@ -84,6 +91,44 @@ def test_level_soles_lays_tilted_feet_flat_and_the_biped_stands(tmp_path):
 def test_a_sole_tilted_beyond_the_limit_is_left(tmp_path):
     g = _biped(tilt_deg=MAX_SOLE_TILT + 10.0)
     assert "level_soles" not in _write(g, tmp_path / "on", stance=True).rules
+
+
+@pytest.mark.parametrize("seed,tilt", [(1, 10.0), (3, 20.0)])
+def test_level_stilts_stands_a_bipeds_slanted_stilts_on_their_ends(seed, tilt, tmp_path):
+    """Feet boxes pitched until their long axis is ``tilt`` degrees from vertical (stilts, what
+    decoded bipeds often stand on): on their edges the biped falls; stood on their end faces,
+    it stands."""
+    g = _biped(tilt_deg=90.0 - tilt, seed=seed)
+    before = _write(g, tmp_path / "off", stance=False)
+    after = _write(g, tmp_path / "on", stance=True)
+    model = mujoco.MjModel.from_xml_path(str(before.robot_path))
+    slanted = floor_boxes(model, at_qpos0(model), on_end=True)
+    assert [t for _, _, t in slanted] == [pytest.approx(tilt, abs=0.5)] * 2
+    names = [model.geom(g).name for g, _, _ in slanted]
+    assert "level_stilts" in after.rules and "level_soles" not in after.rules
+    assert not standing(before.robot_path).stands
+    assert standing(after.robot_path).stands
+    model = mujoco.MjModel.from_xml_path(str(after.robot_path))
+    data = at_qpos0(model)
+    for f in (model.geom(n).id for n in names):  # the longest axis vertical: on its end face
+        up = np.abs(data.geom_xmat[f].reshape(3, 3)[2])
+        assert up.max() == pytest.approx(1.0, abs=1e-5)
+        assert model.geom_size[f, int(np.argmax(up))] == model.geom_size[f].max()
+    assert len(support_points(model, data, tol=1e-4)[0]) >= 8  # two end faces on the floor
+    assert attachment(str(after.robot_path)).all_attached
+
+
+@pytest.mark.parametrize("seed,kind", [(0, "hexapod"), (6, "quadruped")])
+def test_stilts_of_a_robot_on_more_legs_keep_their_slant(seed, kind, tmp_path):
+    """The procedural hexapods and quadrupeds stand on leg boxes slanted by 18-25 degrees:
+    ``level_stilts`` leaves them (only a biped falls off its edges)."""
+    g = model_to_graph(procedural_spec(seed, kind).compile(), FS, name=kind)
+    off = _write(g, tmp_path / "off", stance=False)
+    model = mujoco.MjModel.from_xml_path(str(off.robot_path))
+    assert len(floor_boxes(model, at_qpos0(model), on_end=True)) >= 4
+    on = _write(g, tmp_path / "on", stance=True)
+    assert "level_stilts" not in on.rules
+    assert on.robot_path.read_bytes() == off.robot_path.read_bytes()
 
 
 def test_balance_home_leans_the_biped_over_its_feet(tmp_path):
