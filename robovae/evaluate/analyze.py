@@ -36,6 +36,7 @@ import math
 import os
 import time
 from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +46,7 @@ from torch_geometric.data import Batch
 from robovae.data.dataset import RobotDataset
 from robovae.data.graph import RobotData
 from robovae.data.mjcf import mjcf_to_graph
+from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
 from robovae.evaluate.descriptors import DESCRIPTORS, descriptors, robot_category
@@ -251,9 +253,12 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
                   "procedural": (procedural_files(min(procedural, quality), root,
                                                   HOLDOUT_SEED + seed), None),
                   "real robots": (real_robot_files(real)[:quality], None)}
-        pops = {k: measure_many(files, jobs=jobs or 2, progress=progress, desc=k, names=names,
-                                locomotion=locomotion)
-                for k, (files, names) in groups.items() if files}
+        workers = jobs or 2
+        # one pool for the four populations: a worker spends seconds on its imports
+        with process_pool(workers) if workers > 1 else nullcontext() as pool:
+            pops = {k: measure_many(files, jobs=workers, progress=progress, desc=k, names=names,
+                                    pool=pool, locomotion=locomotion)
+                    for k, (files, names) in groups.items() if files}
         rows, cols, numbers = quality_table(pops, seed=seed)
         result["quality"] = {"populations": pops, "table": rows, "columns": cols,
                              "numbers": numbers}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -67,6 +68,26 @@ def test_summary_shares_leave_errors_out() -> None:
     assert s["detached_share"] == 0.25 and s["self_penetrating"] == 0.5
     assert s["floating"] == 1 and s["standing"] == 1.0 and s["mean_limbs"] == 2.5
     assert math.isnan(s["gait_speed"]) and math.isnan(summarize([])["standing"])
+
+
+def test_populations_measured_in_one_pool_as_in_this_process(tmp_path) -> None:
+    """``robovae analyze`` measures its populations in one pool of workers (each worker's imports
+    cost seconds): the rows are those measured in this process, and the pool outlives each
+    call."""
+    from robovae.data.workers import process_pool
+
+    pops = [[ZOO["gym_ant"], ZOO["gym_hopper"], ZOO["gym_walker2d"]],
+            procedural_files(3, tmp_path, seed=3)]
+
+    def untimed(rows):  # as JSON text: NaN (a ratio of nothing) equals itself
+        return json.dumps([{k: v for k, v in r.items() if not k.startswith("t_")}
+                           for r in rows], sort_keys=True)
+
+    here = [untimed(measure_many(p, jobs=1, progress=False)) for p in pops]
+    with process_pool(2) as pool:
+        shared = [untimed(measure_many(p, jobs=2, progress=False, pool=pool)) for p in pops]
+        assert pool.submit(int, "7").result() == 7  # still running
+    assert shared == here and json.loads(here[0])[0]["stands"] and len(json.loads(here[1])) == 3
 
 
 def test_quality_table_compares_with_the_corpus_and_real_robots(tmp_path, menagerie_dir

@@ -29,6 +29,8 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Sequence
+from concurrent.futures import Executor
+from contextlib import nullcontext
 from pathlib import Path
 
 import mujoco
@@ -124,10 +126,14 @@ def _measure_item(item: tuple) -> dict:
 
 def measure_many(robots: Sequence[str | os.PathLike | mujoco.MjSpec], jobs: int = 2,
                  progress: bool = True, desc: str = "quality",
-                 names: Sequence[str] | None = None, **kw) -> list[dict]:
+                 names: Sequence[str] | None = None, pool: Executor | None = None,
+                 **kw) -> list[dict]:
     """:func:`measure` (keyword arguments ``kw``) of many robots, in order, in ``jobs`` worker
     processes (``spawn``; ``0``: all cores, ``1``: in this process), with a tqdm progress bar
-    labelled ``desc``; robot ``k`` is called ``names[k]`` when given."""
+    labelled ``desc``; robot ``k`` is called ``names[k]`` when given. ``pool``: worker
+    processes already started (:func:`~robovae.data.workers.process_pool`, left running), for
+    callers that measure several populations: each new worker spends seconds importing torch
+    and PyG (for the graph descriptors) before its first robot."""
     from tqdm.auto import tqdm
 
     items = [(r, names[k] if names is not None else None, kw) for k, r in enumerate(robots)]
@@ -141,8 +147,9 @@ def measure_many(robots: Sequence[str | os.PathLike | mujoco.MjSpec], jobs: int 
                 bar.update()
             return out
         chunk = max(1, min(16, len(items) // (4 * jobs)))
-        with process_pool(min(jobs, len(items))) as pool:
-            for rec in pool.map(_measure_item, items, chunksize=chunk):
+        with nullcontext(pool) if pool is not None else process_pool(min(jobs, len(items))) \
+                as workers:
+            for rec in workers.map(_measure_item, items, chunksize=chunk):
                 out.append(rec)
                 bar.update()
         return out
