@@ -8,8 +8,8 @@ A worker (:func:`evaluate`) writes the candidate into a scratch folder as ``robo
 writes a robot (no scene, stance rules on), scores it (:func:`scored`) and deletes the folder.
 
 This module and what it imports load neither torch nor PyG, so a spawned worker starts on the
-writer, the validator and the simulation only (about 50 MB and a quarter of a second instead
-of 460 MB and seconds: docs/design.md).
+writer, the validator and the simulation only (measured: 66-115 MB at peak instead of
+466-525 MB, and about 5 s less CPU per worker; docs/design.md).
 """
 
 from __future__ import annotations
