@@ -10,7 +10,8 @@ model is compiled, ``mj_forward`` run at ``qpos0``, and the lowest point over th
 ``z = clearance`` (m) by shifting the free bodies' ``pos[2]``. This changes the root link's
 ``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it. With ``stance`` the
 stance rules run first (:mod:`robovae.generate.stance`: hanging wheels lowered onto the floor,
-soles laid flat, then a ``home`` keyframe lifted with the robot).
+soles laid flat, a biped's stilts stood on their ends, then a ``home`` keyframe lifted with the
+robot).
 
 **Round trip** (MJCF → graph → :func:`write_robot` → graph), within the 6-digit MJCF
 precision:
