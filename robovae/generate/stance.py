@@ -150,11 +150,14 @@ def _extent(points: np.ndarray) -> float:
     return max(float(np.linalg.norm(points.max(0) - points.min(0))), 1e-9) if len(points) else 0.0
 
 
-def support_points(model: mujoco.MjModel, data: mujoco.MjData, tol: float = SUPPORT_TOL
+def support_points(model: mujoco.MjModel, data: mujoco.MjData, tol: float = SUPPORT_TOL,
+                   points: tuple[np.ndarray, np.ndarray] | None = None
                    ) -> tuple[np.ndarray, np.ndarray, float]:
     """The support points at ``data``'s pose (kinematics done), their geoms and the robot's
-    size ``L`` (module docstring); ``tol``: share of ``L`` above the lowest point."""
-    pts, owner = _points(model, data)
+    size ``L`` (module docstring); ``tol``: share of ``L`` above the lowest point; ``points``:
+    every geom's candidate lowest points and their geoms at that pose, when the caller has
+    them."""
+    pts, owner = _points(model, data) if points is None else points
     if not len(pts):
         return pts, owner, 0.0
     ext = _extent(pts)
@@ -229,14 +232,16 @@ def ground_wheels(model: mujoco.MjModel, root: int, data: mujoco.MjData | None =
     return {model.body(m).name: to_root @ np.array([0.0, 0.0, -d]) for m, d in drop.items()}
 
 
-def _floor_boxes(model: mujoco.MjModel, data: mujoco.MjData, on_end: bool
+def _floor_boxes(model: mujoco.MjModel, data: mujoco.MjData, on_end: bool,
+                 points: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> list[tuple[int, np.ndarray, float]]:
     """The named box geoms of leaf links whose lowest corner lies within :data:`SOLE_TOL`
     ``· L`` of the robot's lowest point, lying (``on_end=False``: the axis nearest to vertical is
     not the longest) or standing on their end (``on_end=True``), tilted by ``0 < tilt <=``
     :data:`MAX_SOLE_TILT` degrees: ``(geom, up, tilt)``, ``up`` the box axis nearest to
-    vertical, pointing up (world frame)."""
-    pts, owner = _points(model, data)
+    vertical, pointing up (world frame). ``points``: :func:`_points` at ``data``'s pose, when
+    the caller has them."""
+    pts, owner = _points(model, data) if points is None else points
     if not len(pts):
         return []
     low, ext = float(pts[:, 2].min()), _extent(pts)
@@ -292,11 +297,12 @@ def level_stilts(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
     ``spec`` compiled; ``data``: its kinematics at ``qpos0``, made here when not given). Returns
     whether a stilt was turned."""
     data = at_qpos0(model, data)
-    near = support_points(model, data, tol=BIPED_TOL)[1]
+    points = _points(model, data)
+    near = support_points(model, data, tol=BIPED_TOL, points=points)[1]
     legs = {_limb(model, int(model.geom_bodyid[g]), root) for g in near}
     if len(legs) != 2 or root in legs:
         return False
-    stilts = _floor_boxes(model, data, on_end=True)
+    stilts = _floor_boxes(model, data, on_end=True, points=points)
     for g, up, _ in stilts:
         _lay_flat(spec, model, data, g, up)
     return bool(stilts)
