@@ -17,8 +17,12 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
   the whole space, ``k = d``); population ``population`` (default ``4 + floor(3 ln k)``, the
   ``cmaes`` default), seeded with ``seed``; it minimises ``-score``. After
   :data:`RESTART_AFTER` generations without a better robot (or when ``cmaes`` says it has
-  converged) it restarts from the same start with twice the population (IPOP-CMA-ES, Auger and
-  Hansen 2005). The directions left out
+  converged) it restarts, alternately *locally* — from the best point ``y*`` found so far, step
+  size :data:`LOCAL_SIGMA`, the first population: the neighbourhood of a walker holds better
+  walkers than the prior does (docs/design.md) — and *globally*, from the same start as the
+  first run with twice the population of the last global run (IPOP-CMA-ES, Auger and Hansen
+  2005; the alternation of a large-population regime with a small-step one as in BIPOP-CMA-ES,
+  Hansen 2009). The directions left out
   hold the posterior's collapsed latents, where a d-dimensional CMA-ES spends most of its
   budget learning nothing (docs/design.md);
 - ``prior``: random samples of the model's sampling prior, what ``robovae generate`` draws
@@ -108,8 +112,10 @@ LOG = "log.json"
 PRIOR_REDRAWS = 4
 #: New CMA-ES candidates asked, at most, in place of one whose decoding did not finish its tree.
 CMA_RESAMPLES = 20
-#: CMA-ES generations without a better robot after which it restarts with twice the population.
+#: CMA-ES generations without a better robot after which it restarts (locally, then globally).
 RESTART_AFTER = 10
+#: Step size of a local restart, around the best point so far (whitened prior units).
+LOCAL_SIGMA = 0.15
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
@@ -166,6 +172,9 @@ class _Run:
         k = self.basis.shape[1]
         self.cma = CMA(mean=np.zeros(k), sigma=1.0, seed=seed, population_size=population)
         self.restarts, self._best, self._stall = 0, -math.inf, 0
+        self.local = False  # the running CMA-ES is a local restart
+        self._global_population = self.cma.population_size
+        self._top: tuple[float, np.ndarray] = (-math.inf, np.zeros(k))  # best score, its y
         self.settings = {"model": model_fingerprint(model), "task": task, "seed": seed,
                          "latent_dim": self.dim, "score_seeds": self.seeds,
                          "score_version": SCORE_VERSION, "cma_start": "prior moments",
@@ -173,7 +182,8 @@ class _Run:
                          "cma_population": self.cma.population_size,
                          "unfinished": f"cma resamples {CMA_RESAMPLES}, prior redraws "
                                        f"{PRIOR_REDRAWS}, then 0",
-                         "cma_restarts": f"IPOP after {RESTART_AFTER} generations",
+                         "cma_restarts": f"after {RESTART_AFTER} generations, local (step "
+                                         f"{LOCAL_SIGMA} from the best) and IPOP alternately",
                          "writer": WRITER}
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
@@ -242,19 +252,30 @@ class _Run:
 
     def _tell(self, ys: Sequence[np.ndarray], recs: Sequence[dict]) -> None:
         """Tell CMA-ES a generation's scores; after :data:`RESTART_AFTER` generations
-        without a better robot since it started, restart it (IPOP-CMA-ES): from the prior's
-        moments again, step size 1, twice the population, seeded by ``(seed, restart)``."""
+        without a better robot since it started, restart it, seeded by ``(seed, restart)``:
+        after a global run locally (from the best point so far, step size
+        :data:`LOCAL_SIGMA`, the first run's population), after a local run globally (IPOP:
+        from the prior's moments, step size 1, twice the last global run's population)."""
         from cmaes import CMA
 
         self.cma.tell([(y, -r["score"]) for y, r in zip(ys, recs)])
-        best = max(r["score"] for r in recs)
+        k = max(range(len(recs)), key=lambda i: recs[i]["score"])
+        best = recs[k]["score"]
+        if best > self._top[0]:
+            self._top = (best, np.array(ys[k]))
         self._best, self._stall = (best, 0) if best > self._best else (self._best,
                                                                         self._stall + 1)
         if self._stall >= RESTART_AFTER or self.cma.should_stop():
             self.restarts += 1
             seed = int(np.random.SeedSequence([self.seed, self.restarts, 3]).generate_state(1)[0])
-            self.cma = CMA(mean=np.zeros(self.basis.shape[1]), sigma=1.0, seed=seed,
-                           population_size=2 * self.cma.population_size)
+            self.local = not self.local
+            if self.local:
+                self.cma = CMA(mean=self._top[1], sigma=LOCAL_SIGMA, seed=seed,
+                               population_size=self.settings["cma_population"])
+            else:
+                self._global_population *= 2
+                self.cma = CMA(mean=np.zeros(self.basis.shape[1]), sigma=1.0, seed=seed,
+                               population_size=self._global_population)
             self._best, self._stall = -math.inf, 0
 
     def _check_replay(self, zs: Sequence[np.ndarray], recs: Sequence[dict]) -> None:
@@ -340,7 +361,7 @@ class _Run:
             if k in draws:
                 rec["draw"] = draws[k]
             if k in rejected:
-                rec.update(rejected=rejected[k], restart=self.restarts)
+                rec.update(rejected=rejected[k], restart=self.restarts, local=self.local)
             ev[m].append(rec)
         if left["cma"] > 0:
             gen = ev["cma"][start:start + pop]

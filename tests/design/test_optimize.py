@@ -404,21 +404,37 @@ def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes,
     assert longer == json.loads((tmp_path / "fresh" / "log.json").read_text())
 
 
-def test_cma_es_restarts_with_twice_the_population_and_resumes(trained_nodes, tmp_path,
-                                                               monkeypatch):
-    """IPOP: a CMA-ES that finds nothing better for RESTART_AFTER generations (here 1) starts
-    again with twice the population; a resumed run replays the restarts."""
+def test_cma_es_restarts_locally_and_globally_in_turn_and_resumes(trained_nodes, tmp_path,
+                                                                  monkeypatch):
+    """A CMA-ES that finds nothing better for RESTART_AFTER generations (here 1) restarts,
+    in turn, around the best point so far (step LOCAL_SIGMA, the first population) and from
+    the prior with twice the last global population (IPOP); a resumed run replays both."""
     import robovae.design.optimize as opt
 
     monkeypatch.setattr(opt, "RESTART_AFTER", 1)
     _, _, ckpt = trained_nodes
     out = tmp_path / "opt"
     optimize(ckpt, "reach", 10, out, seed=0, jobs=1, progress=False, population=2)
-    cma = json.loads((out / "log.json").read_text())["evaluations"]["cma"]
+    log = json.loads((out / "log.json").read_text())
+    cma = log["evaluations"]["cma"]
     restarts = [r["restart"] for r in cma]
-    assert restarts == sorted(restarts) and restarts[-1] >= 1
-    sizes = [restarts.count(k) for k in range(restarts[-1])]  # whole generations, doubling
-    assert all(n % (2 * 2 ** k) == 0 for k, n in enumerate(sizes))
+    assert restarts == sorted(restarts) and restarts[-1] >= 2
+    assert [r["local"] for r in cma] == [k % 2 == 1 for k in restarts]
+    sizes = [restarts.count(k) for k in range(restarts[-1])]  # whole generations
+    assert all(n % 2 == 0 for n in sizes[1::2])  # local: the first population
+    assert all(n % (2 * 2 ** k) == 0 for k, n in enumerate(sizes[::2]))  # global: doubling
+    # a local run searches around the best latent before it, a global one the whole prior
+    from robovae.model.checkpoint import load_model
+
+    run = opt._Run(load_model(ckpt), "reach", 10, out, 0, 1, 1, 0.95, 2)
+    whiten = np.linalg.pinv(run.basis)
+    first = restarts.index(1)
+    best = max(cma[:first], key=lambda r: r["score"])
+    y_best = whiten @ (np.array(best["z"]) - run.origin)
+    near = [np.linalg.norm(whiten @ (np.array(r["z"]) - run.origin) - y_best)
+            for r in cma if r["restart"] == 1]
+    far = [np.linalg.norm(whiten @ (np.array(r["z"]) - run.origin)) for r in cma[:first]]
+    assert max(near) < 0.5 * np.median(far)
     optimize(ckpt, "reach", 12, out, seed=0, jobs=1, progress=False, population=2)
     again = json.loads((out / "log.json").read_text())["evaluations"]["cma"]
     assert again[:10] == cma and len(again) == 12
