@@ -74,6 +74,7 @@ checkpoint that is not one, an ``out`` that is a file or holds a log of another 
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import os
@@ -411,7 +412,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
-    model = ckpt if isinstance(ckpt, RoboVAE) else load_model(ckpt)
+    # a copy: float64 decoding must not change the caller's model
+    model = copy.deepcopy(ckpt) if isinstance(ckpt, RoboVAE) else load_model(ckpt)
     run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
                score_sets)
     run.load()

@@ -28,6 +28,7 @@ not one, or an ``--out`` that holds something else (:class:`~robovae.errors.Robo
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -72,7 +73,9 @@ def ball_offsets(rng: np.random.Generator, count: int, dim: int, radius: float) 
 
 
 def _model(model: RoboVAE | str | Path) -> RoboVAE:
-    return model if isinstance(model, RoboVAE) else load_model(model)
+    """A copy of ``model`` (decoding in float64 must not change the caller's), or the
+    checkpoint's model."""
+    return copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
 
 
 @torch.no_grad()

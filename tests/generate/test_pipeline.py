@@ -158,7 +158,9 @@ def test_latent_depends_on_seed_and_index_only():
 
 
 def test_predict_writer_matches_generate(trained, tmp_path):
-    model, _, ckpt = trained
+    _, _, ckpt = trained
+    # precision 64-true turns the module into float64 in place: not the session's shared model
+    model = copy.deepcopy(trained[0])
     dm = RobotDataModule(["zoo"], root=str(tmp_path / "cache"), predict_samples=5,
                          predict_seed=4, batch_size=2)
     writer = RobotWriter(str(tmp_path / "pred"), validate=False)
