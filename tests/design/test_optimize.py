@@ -438,3 +438,12 @@ def test_cma_es_restarts_locally_and_globally_in_turn_and_resumes(trained_nodes,
     optimize(ckpt, "reach", 12, out, seed=0, jobs=1, progress=False, population=2)
     again = json.loads((out / "log.json").read_text())["evaluations"]["cma"]
     assert again[:10] == cma and len(again) == 12
+
+
+def test_a_given_model_is_not_changed(trained_nodes, tmp_path):
+    """optimize decodes in float64 on a copy: the caller's model keeps its dtype."""
+    from robovae.model.checkpoint import load_model
+
+    model = load_model(trained_nodes[2])
+    optimize(model, "reach", 1, tmp_path / "opt", seed=0, jobs=1, top=1, progress=False)
+    assert all(p.dtype == torch.float32 for p in model.parameters())
