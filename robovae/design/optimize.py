@@ -74,7 +74,6 @@ checkpoint that is not one, an ``out`` that is a file or holds a log of another 
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 import os
@@ -101,7 +100,7 @@ from robovae.design.score import SCORE_VERSION, TASKS
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.generate.writer import WRITER as WRITTEN
-from robovae.model.checkpoint import load_model
+from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
 
@@ -412,8 +411,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
-    # a copy: float64 decoding must not change the caller's model
-    model = copy.deepcopy(ckpt) if isinstance(ckpt, RoboVAE) else load_model(ckpt)
+    model = own_model(ckpt)  # decoded in float64: never the caller's object
     run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
                score_sets)
     run.load()

@@ -28,7 +28,6 @@ not one, or an ``--out`` that holds something else (:class:`~robovae.errors.Robo
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 import math
@@ -56,7 +55,7 @@ from robovae.generate.pipeline import (
     write_records,
 )
 from robovae.generate.writer import WRITER
-from robovae.model.checkpoint import load_model
+from robovae.model.checkpoint import own_model
 from robovae.model.vae import RoboVAE
 
 __all__ = ["ball_offsets", "encode_file", "generate_like", "interpolate_files"]
@@ -70,12 +69,6 @@ def ball_offsets(rng: np.random.Generator, count: int, dim: int, radius: float) 
     u = rng.standard_normal((count, dim))
     u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
     return u * (radius * rng.random((count, 1)) ** (1.0 / dim))
-
-
-def _model(model: RoboVAE | str | Path) -> RoboVAE:
-    """A copy of ``model`` (decoding in float64 must not change the caller's), or the
-    checkpoint's model."""
-    return copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
 
 
 @torch.no_grad()
@@ -111,7 +104,7 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     if n < 1:
         raise RobovaeError(f"robovae: -n must be >= 1, got {n}")
     start = time.perf_counter()
-    model = _model(model)
+    model = own_model(model)  # decoded in float64: never the caller's object
     mu, w = encode_file(model, robot)  # refuses a bad file before anything is written
     out = Path(out)
     digest = hashlib.sha256(Path(robot).read_bytes()).hexdigest()
@@ -159,7 +152,7 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
         raise RobovaeError(f"robovae: --steps must be >= 2 (the two ends), got {steps}")
     out = Path(out)
     _check_out(out)
-    model = _model(model)
+    model = own_model(model)  # decoded in float64: never the caller's object
     ga, gb = mjcf_to_graph(a, model.feature_set), mjcf_to_graph(b, model.feature_set)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))

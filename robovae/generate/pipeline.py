@@ -20,7 +20,6 @@ error or Ctrl-C cancels the robots still queued for them.
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 import math
@@ -48,7 +47,7 @@ from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.build import build_robot, warm_up
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.writer import WRITER
-from robovae.model.checkpoint import load_model
+from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import PRIORS, RoboVAE
 
@@ -248,7 +247,7 @@ def generate(
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
                            f"not {n!r}")
     start = time.perf_counter()
-    model = copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
+    model = own_model(model)
     if prior is not None:
         model.hparams.prior = prior
     if node_temperature is None:  # the checkpoint's setting, recorded as such

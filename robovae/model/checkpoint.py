@@ -12,6 +12,7 @@ it, and passes ``weights_only=True`` to the trainer (Lightning's own default, ``
 
 from __future__ import annotations
 
+import copy
 import re
 import zipfile
 from pathlib import Path
@@ -133,3 +134,9 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> Ro
     except Exception as e:  # weights of another model (shapes, names), bad hyperparameters
         raise refusal(path, e) from None
     return model.to(map_location).eval()
+
+
+def own_model(model: RoboVAE | str | Path) -> RoboVAE:
+    """A model the caller may change (e.g. turn into float64): a deep copy of a given
+    :class:`RoboVAE`, never the object itself, or :func:`load_model` of a checkpoint path."""
+    return copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)
