@@ -98,7 +98,9 @@ def cmd_optimize(args: argparse.Namespace) -> int:
 
     res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
                    top=args.top, variance=args.variance, population=args.population,
-                   score_sets=args.score_sets)
+                   score_sets=args.score_sets, **{k: v for k, v in (
+                       ("restart_after", args.restart_after), ("local_step", args.local_step))
+                       if v is not None})
     held = "held-out median"  # the best robot re-scored with score seeds 1-8
     pick = "held-out best (rank)"  # the largest such median among the --top best robots
     rows = [{"method": m, "evaluations": res[m]["evaluations"], "best": f"{res[m]['best']:.4f}",
@@ -243,6 +245,12 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--score-sets", type=int, default=1,
                    help="score each robot with this many score seeds and take the median (for "
                         "walk: sets of 8 gaits; each evaluation costs that many scorings)")
+    o.add_argument("--restart-after", type=int, default=None,
+                   help="CMA-ES generations without a better robot before it restarts, in "
+                        "turn locally (around the best so far) and globally (IPOP); default 10")
+    o.add_argument("--local-step", type=float, default=None,
+                   help="step size of a local restart, in the whitened prior's units; "
+                        "default 0.15")
     o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
     o.set_defaults(func=cmd_optimize)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "

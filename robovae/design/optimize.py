@@ -15,15 +15,15 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
   CMA-ES over ``y`` starts at ``0`` with covariance ``I`` and step size ``sigma_0 = 1``, so that
   its first generation is spread like the prior samples it competes with (``variance = 1``:
   the whole space, ``k = d``); population ``population`` (default ``4 + floor(3 ln k)``, the
-  ``cmaes`` default), seeded with ``seed``; it minimises ``-score``. After
-  :data:`RESTART_AFTER` generations without a better robot (or when ``cmaes`` says it has
-  converged) it restarts, alternately *locally* — from the best point ``y*`` found so far, step
-  size :data:`LOCAL_SIGMA`, the first population: the neighbourhood of a walker holds better
-  walkers than the prior does (docs/design.md) — and *globally*, from the same start as the
-  first run with twice the population of the last global run (IPOP-CMA-ES, Auger and Hansen
-  2005; the alternation of a large-population regime with a small-step one as in BIPOP-CMA-ES,
-  Hansen 2009). The directions left out
-  hold the posterior's collapsed latents, where a d-dimensional CMA-ES spends most of its
+  ``cmaes`` default), seeded with ``seed``; it minimises ``-score``. After ``restart_after``
+  (default :data:`RESTART_AFTER`) generations without a better robot (or when ``cmaes`` says it
+  has converged) it restarts, alternately *locally* — from the best point ``y*`` found so far,
+  step size ``local_step`` (default :data:`LOCAL_SIGMA`), the first population: the
+  neighbourhood of a walker holds better walkers than the prior does (docs/design.md) — and
+  *globally*, from the same start as the first run with twice the population of the last
+  global run (IPOP-CMA-ES, Auger and Hansen 2005; the alternation of a large-population regime
+  with a small-step one as in BIPOP-CMA-ES, Hansen 2009). The directions left out hold the
+  posterior's collapsed latents, where a d-dimensional CMA-ES spends most of its
   budget learning nothing (docs/design.md);
 - ``prior``: random samples of the model's sampling prior, what ``robovae generate`` draws
   (:meth:`robovae.model.vae.RoboVAE.prior_latent`: the fitted latent mixture, or
@@ -112,9 +112,11 @@ LOG = "log.json"
 PRIOR_REDRAWS = 4
 #: New CMA-ES candidates asked, at most, in place of one whose decoding did not finish its tree.
 CMA_RESAMPLES = 20
-#: CMA-ES generations without a better robot after which it restarts (locally, then globally).
+#: Default CMA-ES generations without a better robot after which it restarts (locally, then
+#: globally): ``optimize(restart_after=...)``, ``robovae optimize --restart-after``.
 RESTART_AFTER = 10
-#: Step size of a local restart, around the best point so far (whitened prior units).
+#: Default step size of a local restart, around the best point so far (whitened prior units):
+#: ``optimize(local_step=...)``, ``robovae optimize --local-step``.
 LOCAL_SIGMA = 0.15
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
@@ -158,11 +160,13 @@ class _Run:
 
     def __init__(self, model: RoboVAE, task: str, budget: int, out: Path, seed: int,
                  jobs: int, top: int, variance: float, population: int | None = None,
-                 score_sets: int = 1) -> None:
+                 score_sets: int = 1, restart_after: int = RESTART_AFTER,
+                 local_step: float = LOCAL_SIGMA) -> None:
         from cmaes import CMA
 
         self.model, self.task, self.budget, self.out = model, task, budget, out
         self.seed, self.jobs, self.top = seed, jobs, top
+        self.restart_after, self.local_step = restart_after, local_step
         self.seeds = score_seeds(score_sets)
         self.dim = int(model.hparams.latent_dim)
         self.floating = task != "reach"
@@ -182,8 +186,8 @@ class _Run:
                          "cma_population": self.cma.population_size,
                          "unfinished": f"cma resamples {CMA_RESAMPLES}, prior redraws "
                                        f"{PRIOR_REDRAWS}, then 0",
-                         "cma_restarts": f"after {RESTART_AFTER} generations, local (step "
-                                         f"{LOCAL_SIGMA} from the best) and IPOP alternately",
+                         "cma_restarts": f"after {restart_after} generations, local (step "
+                                         f"{local_step:g} from the best) and IPOP alternately",
                          "writer": WRITER}
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
@@ -251,10 +255,10 @@ class _Run:
         self.pending = done[g:]  # a generation cut by the budget
 
     def _tell(self, ys: Sequence[np.ndarray], recs: Sequence[dict]) -> None:
-        """Tell CMA-ES a generation's scores; after :data:`RESTART_AFTER` generations
-        without a better robot since it started, restart it, seeded by ``(seed, restart)``:
-        after a global run locally (from the best point so far, step size
-        :data:`LOCAL_SIGMA`, the first run's population), after a local run globally (IPOP:
+        """Tell CMA-ES a generation's scores; after ``restart_after`` generations without a
+        better robot since it started, restart it, seeded by ``(seed, restart)``: after a
+        global run locally (from the best point so far, step size ``local_step``, the first
+        run's population), after a local run globally (IPOP:
         from the prior's moments, step size 1, twice the last global run's population)."""
         from cmaes import CMA
 
@@ -265,12 +269,12 @@ class _Run:
             self._top = (best, np.array(ys[k]))
         self._best, self._stall = (best, 0) if best > self._best else (self._best,
                                                                         self._stall + 1)
-        if self._stall >= RESTART_AFTER or self.cma.should_stop():
+        if self._stall >= self.restart_after or self.cma.should_stop():
             self.restarts += 1
             seed = int(np.random.SeedSequence([self.seed, self.restarts, 3]).generate_state(1)[0])
             self.local = not self.local
             if self.local:
-                self.cma = CMA(mean=self._top[1], sigma=LOCAL_SIGMA, seed=seed,
+                self.cma = CMA(mean=self._top[1], sigma=self.local_step, seed=seed,
                                population_size=self.settings["cma_population"])
             else:
                 self._global_population *= 2
@@ -377,11 +381,14 @@ class _Run:
 def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
              seed: int = 0, jobs: int = 0, top: int = 10, progress: bool = True,
              variance: float = 0.95, population: int | None = None,
-             score_sets: int = 1) -> dict:
+             score_sets: int = 1, restart_after: int = RESTART_AFTER,
+             local_step: float = LOCAL_SIGMA) -> dict:
     """Run (or continue) an optimisation (module docstring). ``population``: CMA-ES candidates
     per generation (None: ``4 + floor(3 ln k)``); each round scores as many baseline robots.
     ``score_sets``: score seeds per robot (:func:`score_seeds`), each evaluation then costs
-    that many scorings for every method.
+    that many scorings for every method. ``restart_after``: CMA-ES generations without a
+    better robot before a restart; ``local_step``: the step size of a local restart (whitened
+    prior units); both are settings of the run (module docstring).
 
     Returns:
         per method ``evaluations``, ``best`` score, ``best_index``, ``heldout`` (the best
@@ -394,7 +401,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
 
     Raises:
         RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
-            ``population < 2``, ``score_sets < 1``, bad checkpoint, ``out`` not usable.
+            ``population < 2``, ``score_sets < 1``, ``restart_after < 1``, ``local_step`` not
+            > 0, bad checkpoint, ``out`` not usable.
     """
     if task not in TASKS:
         raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
@@ -408,12 +416,16 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         raise RobovaeError(f"robovae: --population must be >= 2, got {population}")
     if score_sets < 1:
         raise RobovaeError(f"robovae: --score-sets must be >= 1, got {score_sets}")
+    if restart_after < 1:
+        raise RobovaeError(f"robovae: --restart-after must be >= 1, got {restart_after}")
+    if not (local_step > 0 and math.isfinite(local_step)):
+        raise RobovaeError(f"robovae: --local-step must be > 0, got {local_step}")
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
     model = own_model(ckpt)  # decoded in float64: never the caller's object
     run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
-               score_sets)
+               score_sets, restart_after, local_step)
     run.load()
     out.mkdir(parents=True, exist_ok=True)
     from tqdm.auto import tqdm

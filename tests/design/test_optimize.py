@@ -266,6 +266,9 @@ def test_a_worker_scores_candidates_without_torch(tmp_path):
     (["--task", "walk", "--budget", "2", "--variance", "0"], "--variance must be in (0, 1]"),
     (["--task", "walk", "--budget", "2", "--population", "1"], "--population must be >= 2"),
     (["--task", "walk", "--budget", "2", "--score-sets", "0"], "--score-sets must be >= 1"),
+    (["--task", "walk", "--budget", "2", "--restart-after", "0"], "--restart-after must be >= 1"),
+    (["--task", "walk", "--budget", "2", "--local-step", "0"], "--local-step must be > 0"),
+    (["--task", "walk", "--budget", "2", "--local-step", "nan"], "--local-step must be > 0"),
 ])
 def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, message):
     _, _, ckpt = trained_nodes
@@ -405,16 +408,17 @@ def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes,
 
 
 def test_cma_es_restarts_locally_and_globally_in_turn_and_resumes(trained_nodes, tmp_path,
-                                                                  monkeypatch):
-    """A CMA-ES that finds nothing better for RESTART_AFTER generations (here 1) restarts,
-    in turn, around the best point so far (step LOCAL_SIGMA, the first population) and from
-    the prior with twice the last global population (IPOP); a resumed run replays both."""
+                                                                  capsys):
+    """A CMA-ES that finds nothing better for ``restart_after`` generations (here 1) restarts,
+    in turn, around the best point so far (step ``local_step``, the first population) and from
+    the prior with twice the last global population (IPOP); a resumed run replays both, a run
+    with other restart settings is refused."""
     import robovae.design.optimize as opt
 
-    monkeypatch.setattr(opt, "RESTART_AFTER", 1)
     _, _, ckpt = trained_nodes
     out = tmp_path / "opt"
-    optimize(ckpt, "reach", 10, out, seed=0, jobs=1, progress=False, population=2)
+    optimize(ckpt, "reach", 10, out, seed=0, jobs=1, progress=False, population=2,
+             restart_after=1)
     log = json.loads((out / "log.json").read_text())
     cma = log["evaluations"]["cma"]
     restarts = [r["restart"] for r in cma]
@@ -435,9 +439,17 @@ def test_cma_es_restarts_locally_and_globally_in_turn_and_resumes(trained_nodes,
             for r in cma if r["restart"] == 1]
     far = [np.linalg.norm(whiten @ (np.array(r["z"]) - run.origin)) for r in cma[:first]]
     assert max(near) < 0.5 * np.median(far)
-    optimize(ckpt, "reach", 12, out, seed=0, jobs=1, progress=False, population=2)
+    optimize(ckpt, "reach", 12, out, seed=0, jobs=1, progress=False, population=2,
+             restart_after=1)
     again = json.loads((out / "log.json").read_text())["evaluations"]["cma"]
     assert again[:10] == cma and len(again) == 12
+    before = (out / "log.json").read_text()
+    for flags in (["--restart-after", "2"], ["--restart-after", "1", "--local-step", "0.3"]):
+        assert main(["optimize", "--ckpt", str(ckpt), "--task", "reach", "--budget", "14",
+                     "--out", str(out), "--population", "2", *flags]) == 2
+        err = capsys.readouterr().err
+        assert "log of another run (cma_restarts differ)" in err and err.count("\n") == 1
+    assert (out / "log.json").read_text() == before
 
 
 def test_a_given_model_is_not_changed(trained_nodes, tmp_path):
@@ -447,3 +459,11 @@ def test_a_given_model_is_not_changed(trained_nodes, tmp_path):
     model = load_model(trained_nodes[2])
     optimize(model, "reach", 1, tmp_path / "opt", seed=0, jobs=1, top=1, progress=False)
     assert all(p.dtype == torch.float32 for p in model.parameters())
+
+
+def test_optimize_help_gives_the_restart_defaults(capsys):
+    with pytest.raises(SystemExit):
+        main(["optimize", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"default {optimize_module.RESTART_AFTER}" in text
+    assert f"default {optimize_module.LOCAL_SIGMA:g}" in text
