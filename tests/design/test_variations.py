@@ -137,3 +137,21 @@ def test_bad_checkpoint_is_refused(files, tmp_path, capsys):
     out = tmp_path / "o"
     assert main(["generate", "--ckpt", str(ck), "--like", str(files[0]), "--out", str(out)]) == 2
     assert capsys.readouterr().err.count("\n") == 1 and not out.exists()
+
+
+def test_a_given_model_is_not_changed(trained_nodes, files, tmp_path):
+    """generate_like and interpolate_files decode in float64 on a copy: the caller's model
+    keeps its dtype and weights."""
+    import torch
+
+    from robovae.design.variations import generate_like, interpolate_files
+    from robovae.model.checkpoint import load_model
+
+    model = load_model(trained_nodes[2])
+    before = {k: v.clone() for k, v in model.state_dict().items()}
+    a, b, _ = files
+    generate_like(model, a, 0.2, 1, tmp_path / "like", validate=False, jobs=1)
+    interpolate_files(model, a, b, 2, tmp_path / "path", validate=False, sheet=False)
+    assert all(p.dtype == torch.float32 for p in model.parameters())
+    after = model.state_dict()
+    assert all(torch.equal(before[k], after[k]) for k in before)
