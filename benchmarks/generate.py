@@ -22,6 +22,11 @@ processes once they have finished):
 - with ``--ckpt``: ``generate()`` end to end (``quality=False``: decode in this process while
   the workers write and validate), then the same files validated alone.
 
+Then, with ``--phases K`` (default 200; 0: none), the CPU per robot of each step of the writer
+and of the validator, one process, on the first K robots: where a robot's milliseconds go
+(each step timed on its own; steps that redo an earlier one, e.g. ``graph_to_spec``, which
+applies the rules and builds the spec again, say so in their name).
+
 Then the end-to-end throughput over the validation-only throughput of the same files (target
 >= 80 %), with and without the fixed costs of each side (generate: model load, worker
 start-up, summary, measured as a run of ``--jobs`` robots; validation: worker start-up, each
@@ -88,6 +93,52 @@ def _row(step: str, n: int, c: _Clock) -> dict:
             "CPU ms/robot": f"{1e3 * c.cpu / n:.2f}"}
 
 
+def _phases(graphs: list, fs: str, root: Path) -> list[dict]:
+    """CPU ms per robot of each writer and validator step, one process (module docstring)."""
+    import mujoco
+
+    from robovae.evaluate.quality.stage import stage_compiled
+    from robovae.evaluate.quality.standing import HeldRun, first_steps
+    from robovae.generate.graph_view import as_feature_set
+    from robovae.generate.rules import apply_rules
+    from robovae.generate.spec_builder import SpecBuilder
+    from robovae.generate.validate import check_robot
+    from robovae.generate.writer import graph_to_spec
+
+    feature_set = as_feature_set(fs)
+    cpu: dict[str, float] = {}
+
+    def timed(step: str, fn, *a, **kw):
+        t = time.process_time()
+        out = fn(*a, **kw)
+        cpu[step] = cpu.get(step, 0.0) + time.process_time() - t
+        return out
+
+    for i, g in enumerate(graphs):
+        ruled, _ = timed("writer: rules (apply_rules)", apply_rules, g, feature_set)
+        spec = timed("writer: MjSpec build (SpecBuilder)",
+                     lambda r=ruled: SpecBuilder(r, feature_set, "robot", "auto", False).build())
+        timed("writer: one compile", spec.compile)
+        spec, _ = timed("writer: graph_to_spec (rules, build, compiles, stance, placement)",
+                        graph_to_spec, g, feature_set, stance=True)
+        timed("writer: to_xml", spec.to_xml)
+        path = timed("writer: write_robot, all of it", write_robot, g, root / f"robot_{i:06d}",
+                     feature_set, check=False, durable=False, stance=True).robot_path
+        timed("validator: parse the file (MjSpec.from_file)", mujoco.MjSpec.from_file,
+              str(path))
+        checked = timed("validator: check_robot (held), all of it", check_robot, path)
+        if checked.stage is None:
+            continue
+        # the staging and held simulation again, on the checked spec: their share of it
+        st = timed("  of which: stage on the floor (stage_compiled, one compile)",
+                   stage_compiled, checked.model, checked.spec, checked.floor)
+        held = timed("  of which: held run set-up (HeldRun)", HeldRun, st)
+        timed("  of which: 1 s held simulation (mujoco.rollout)", held.run,
+              first_steps(held.model))
+    return [{"step": k, "robots": len(graphs), "CPU ms/robot": f"{1e3 * v / len(graphs):.2f}"}
+            for k, v in cpu.items()]
+
+
 def _graphs(args: argparse.Namespace, model) -> list:
     """The graphs the workers get (:class:`TreeArrays`): decoded and prepared as generate()
     prepares them."""
@@ -120,6 +171,8 @@ def main() -> None:
     p.add_argument("--batch-size", type=int, default=256)
     p.add_argument("--validation", choices=("held", "zero"), default="held")
     p.add_argument("--root", default=None, help="work folder (default: a temp folder)")
+    p.add_argument("--phases", type=int, default=200,
+                   help="robots timed step by step (writer and validator steps; 0: none)")
     args = p.parse_args()
     import torch
 
@@ -160,6 +213,8 @@ def main() -> None:
     rows.append(_row(f"write + validate in {args.jobs} workers, less their start-up "
                      f"({start.wall:.1f} s)", args.n - args.jobs, c.minus(start)))
 
+    phases = _phases(graphs[:args.phases], fs, root / "p") if args.phases > 0 else []
+
     ratio = None
     if model is not None:
         kw = {"jobs": args.jobs, "progress": False, "batch_size": args.batch_size,
@@ -197,6 +252,8 @@ def main() -> None:
                               "CPU ms/robot"]))
     print(f"writer: {1e3 * writer.cpu / args.n:.2f} ms CPU per robot "
           f"({args.n / writer.cpu:.0f} robots per CPU-second)")
+    if phases:
+        print(format_table(phases, ["step", "robots", "CPU ms/robot"]))
     if ratio is not None:
         print(f"end to end / validation-only throughput (wall): {ratio:.0%} with each run's "
               f"fixed costs, {steady:.0%} without them (both sides); from the CPU per robot "
