@@ -55,8 +55,8 @@ import numpy as np
 from robovae.generate.graph_view import norm
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS
 
-__all__ = ["COVER_TOL", "MIN_BRIDGE", "MIN_RADIUS", "GeomPlan", "LinkFrame", "link_geoms",
-           "thickness"]
+__all__ = ["COVER_TOL", "MIN_BRIDGE", "MIN_RADIUS", "GeomPlan", "LinkFrame", "box_fill",
+           "link_geoms", "thickness"]
 
 #: A point farther than this times the thickness from the primitive's surface needs a bridge.
 COVER_TOL = 0.25
@@ -95,6 +95,7 @@ class LinkFrame:
         root: no link above it.
         box: ``(centre, quat, half-sizes)`` of its collision box, in sets that have one.
         hinges: ``[(position, axis)]`` of the hinge joints in its body.
+        fill: :func:`box_fill` of ``box``, when the caller has it (else computed from ``box``).
     """
 
     size: np.ndarray
@@ -104,6 +105,7 @@ class LinkFrame:
     root: bool
     box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     hinges: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    fill: GeomPlan | None = None
 
 
 def _n_size(size: np.ndarray) -> int:
@@ -113,20 +115,20 @@ def _n_size(size: np.ndarray) -> int:
     return k
 
 
-def thickness(size: np.ndarray,
-              box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> float:
-    """The radius a link's bridges take from its ``link.size``, or from its collision box when
-    it has one (module docstring)."""
-    return _thickness(size, _box_fill(box))
-
-
-def _box_fill(box: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> GeomPlan | None:
-    """The primitive that fills a collision box, None without a box (or an empty one)."""
+def box_fill(box: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> GeomPlan | None:
+    """The primitive that fills a collision box ``(centre, quat, half-sizes)`` (module
+    docstring), None without a box (or an empty one)."""
     return _box_primitive(*box) if box is not None and float(np.max(box[2])) > 0 else None
 
 
-def _thickness(size: np.ndarray, fill: GeomPlan | None) -> float:
-    """:func:`thickness` from ``link.size`` and the box's primitive (:func:`_box_fill`)."""
+def thickness(size: np.ndarray,
+              box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+              fill: GeomPlan | None = None) -> float:
+    """The radius a link's bridges take from its ``link.size``, or from its collision box when
+    it has one (module docstring); ``fill``: the box's :func:`box_fill`, when the caller has
+    it."""
+    if fill is None:
+        fill = box_fill(box)
     if fill is not None:
         return float(fill.size[0]) if fill.type != "box" else float(np.min(fill.size))
     k = _n_size(size)
@@ -198,7 +200,7 @@ def _box_geom(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> GeomPla
 
 
 def _primitive(f: LinkFrame, fill: GeomPlan | None) -> GeomPlan:
-    """The link's first geom; ``fill``: :func:`_box_fill` of its box."""
+    """The link's first geom; ``fill``: :func:`box_fill` of its box."""
     if fill is not None:
         prim = fill
         if prim.type == "box" and f.hinges:
@@ -274,9 +276,9 @@ def _bridge(a: np.ndarray, b: np.ndarray, radius: float) -> GeomPlan:
 
 def link_geoms(f: LinkFrame) -> list[GeomPlan]:
     """The primitive of a link, then its bridges (module docstring)."""
-    fill = _box_fill(f.box)
+    fill = f.fill if f.fill is not None else box_fill(f.box)
     prim = _primitive(f, fill)
-    r = _thickness(f.size, fill)
+    r = thickness(f.size, fill=fill)
     out = [prim]
     core = np.zeros(3) if f.root else f.anchor
     rot_t = _frame(prim)

@@ -64,7 +64,7 @@ from robovae.data.box_axes import axes_to_quats
 from robovae.data.features import GEOM, GEOM_TYPE_IDS, GEOM_TYPES, JOINT, LINK, FeatureSet
 from robovae.data.tree_arrays import RobotTree, feature_values
 from robovae.generate.bodies import joint_types, link_structure
-from robovae.generate.link_geometry import LinkFrame, link_geoms, thickness
+from robovae.generate.link_geometry import GeomPlan, LinkFrame, box_fill, link_geoms, thickness
 from robovae.generate.mjcf_numbers import (
     mjcf_round,
     mjcf_round_groups,
@@ -130,7 +130,7 @@ class SpecBuilder:
         self.self_collision = self_collision
         self.fixes: list[str] = []
         self.free_bodies: list[mujoco.MjsBody] = []
-        self._shapes: dict[int, tuple] | None = None  # link -> (size, box, thickness)
+        self._shapes: dict[int, tuple] | None = None  # link -> (size, box, fill, thickness)
         self._continuous: set[str] = set()  # names of the hinges without limits
 
     def move_links(self, shifts: dict[str, np.ndarray]) -> None:
@@ -247,10 +247,12 @@ class SpecBuilder:
             and self.jtypes[chain[0]] != "free" else np.zeros(3)
 
     def _link_shape(self, i: int) -> tuple[
-            np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None, float]:
+            np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None, GeomPlan | None,
+            float]:
         """Link ``i``'s ``link.size`` (zeros when absent), its collision box ``(centre, quat,
-        half-sizes)`` if the set has one, and its thickness; every link's computed at the first
-        call (the box orientations in one batch)."""
+        half-sizes)`` if the set has one, the primitive that fills it
+        (:func:`~robovae.generate.link_geometry.box_fill`) and its thickness; every link's
+        computed at the first call (the box orientations in one batch)."""
         if self._shapes is None:
             links = [k for k, t in enumerate(self.types) if t == LINK]
             quats = axes_to_quats(self.x[links, self.fs.slice("link.box_axes")]) \
@@ -263,7 +265,8 @@ class SpecBuilder:
                 if quats is not None:
                     box = (np.array(self.vec(k, "link.box_pos")), quats[n],
                            np.maximum(self.get(k, "link.box_half"), 0.0))
-                self._shapes[k] = (size, box, thickness(size, box))
+                fill = box_fill(box)
+                self._shapes[k] = (size, box, fill, thickness(size, fill=fill))
         return self._shapes[i]
 
     def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
@@ -273,12 +276,12 @@ class SpecBuilder:
             mujoco.mju_rotVecQuat(t, self._anchor(c),
                                   np.array(self.vec(c, "link.quat")))
             t += np.array(self.vec(c, "link.pos"))
-            children.append((t, self._link_shape(c)[2]))
-        size, box, _ = self._link_shape(i)
+            children.append((t, self._link_shape(c)[3]))
+        size, box, fill, _ = self._link_shape(i)
         hinges = [(np.array(self.vec(j, "joint.pos")), np.array(self.vec(j, "joint.axis")))
                   for j in self.chain[i] if self.jtypes[j] == "hinge"] if box is not None else []
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
-                         self.anc[i] < 0, box, hinges)
+                         self.anc[i] < 0, box, hinges, fill)
 
     def _invented_geoms(self, bodies: dict[int, mujoco.MjsBody], kids: dict[int, list[int]]
                         ) -> None:

@@ -380,7 +380,7 @@ def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: fl
     q0 = model.qpos0.copy()
     foot = feet[0]
     foot_pos, foot_rot = data.xpos[foot].copy(), data.xmat[foot].reshape(3, 3).copy()
-    low0 = float(_points(model, data)[0][:, 2].min())
+    low0 = float(pts[:, 2].min())  # the support points hold the lowest point
 
     def pose(theta: float) -> tuple[np.ndarray, float]:
         """The keyframe at ankle turn ``theta`` and its centre of mass' sagittal offset."""
