@@ -382,8 +382,10 @@ def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: fl
     foot_pos, foot_rot = data.xpos[foot].copy(), data.xmat[foot].reshape(3, 3).copy()
     low0 = float(pts[:, 2].min())  # the support points hold the lowest point
 
-    def pose(theta: float) -> tuple[np.ndarray, float]:
-        """The keyframe at ankle turn ``theta`` and its centre of mass' sagittal offset."""
+    def pose(theta: float, placed: bool = False) -> tuple[np.ndarray, float]:
+        """The keyframe at ankle turn ``theta`` (``placed``: its lowest point put back at the
+        height it had at rest) and its centre of mass' sagittal offset, which a vertical shift
+        does not change (the bisection leaves the placement to the last pose)."""
         q = q0.copy()
         for adr, sign, _ in ankles:
             q[adr] += sign * theta
@@ -394,9 +396,10 @@ def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: fl
         mujoco.mju_mat2Quat(q[qadr + 3:qadr + 7], (turn @ data.xmat[root].reshape(3, 3)).ravel())
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
-        q[qadr + 2] += low0 - float(_points(model, data)[0][:, 2].min())
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
+        if placed:
+            q[qadr + 2] += low0 - float(_points(model, data)[0][:, 2].min())
+            data.qpos[:] = q
+            mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         return q, float(data.subtree_com[root] @ sagittal) - mid
 
@@ -413,7 +416,7 @@ def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: fl
             hi, f_hi = c, f_c
         else:
             lo, f_lo = c, f_c
-    q, _ = pose(0.5 * (lo + hi))
+    q, _ = pose(0.5 * (lo + hi), placed=True)
     q[qadr + 2] += lift
     spec.add_key(name="home", qpos=mjcf_round_vector(q))
     return True
