@@ -413,8 +413,6 @@ def test_cma_es_restarts_locally_and_globally_in_turn_and_resumes(trained_nodes,
     in turn, around the best point so far (step ``local_step``, the first population) and from
     the prior with twice the last global population (IPOP); a resumed run replays both, a run
     with other restart settings is refused."""
-    import robovae.design.optimize as opt
-
     _, _, ckpt = trained_nodes
     out = tmp_path / "opt"
     optimize(ckpt, "reach", 10, out, seed=0, jobs=1, progress=False, population=2,
@@ -430,7 +428,7 @@ def test_cma_es_restarts_locally_and_globally_in_turn_and_resumes(trained_nodes,
     # a local run searches around the best latent before it, a global one the whole prior
     from robovae.model.checkpoint import load_model
 
-    run = opt._Run(load_model(ckpt), "reach", 10, out, 0, 1, 1, 0.95, 2)
+    run = optimize_module._Run(load_model(ckpt), "reach", 10, out, 0, 1, 1, 0.95, 2)
     whiten = np.linalg.pinv(run.basis)
     first = restarts.index(1)
     best = max(cma[:first], key=lambda r: r["score"])
