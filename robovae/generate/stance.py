@@ -78,8 +78,8 @@ import numpy as np
 from robovae.generate.mjcf_numbers import mjcf_round_vector
 
 __all__ = ["BALANCED", "BIPED_TOL", "MAX_ANKLE", "MAX_SOLE_TILT", "MAX_WHEEL_DROP", "SOLE_TOL",
-           "SUPPORT_TOL", "WHEEL_TOL", "at_qpos0", "balance_home", "ground_wheels", "level_soles",
-           "level_stilts", "support_points"]
+           "SUPPORT_TOL", "WHEEL_TOL", "Points", "at_qpos0", "balance_home", "candidate_points",
+           "ground_wheels", "level_soles", "level_stilts", "support_points"]
 
 #: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
@@ -110,10 +110,15 @@ _WHEEL_AXIS_SIN = math.sin(math.radians(45.0))
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
 
+#: :func:`candidate_points`' result: the points ``[P, 3]`` and the geom of each ``[P]``.
+Points = tuple[np.ndarray, np.ndarray]
 
-def _points(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """Every geom's candidate lowest points (world frame, module docstring) and their geoms,
-    geom by geom in id order (one vectorised pass per geom type)."""
+
+def candidate_points(model: mujoco.MjModel, data: mujoco.MjData) -> Points:
+    """Every robot geom's candidate lowest points (world frame, module docstring) at ``data``'s
+    pose (kinematics done) and their geoms, geom by geom in id order (one vectorised pass per
+    geom type). The stance rules take them as ``points`` so that one pose's points are computed
+    once for all of them."""
     robot = np.flatnonzero(model.geom_bodyid != 0)
     if not len(robot):
         return np.zeros((0, 3)), np.zeros(0, dtype=int)
@@ -151,13 +156,12 @@ def _extent(points: np.ndarray) -> float:
 
 
 def support_points(model: mujoco.MjModel, data: mujoco.MjData, tol: float = SUPPORT_TOL,
-                   points: tuple[np.ndarray, np.ndarray] | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, float]:
+                   points: Points | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """The support points at ``data``'s pose (kinematics done), their geoms and the robot's
     size ``L`` (module docstring); ``tol``: share of ``L`` above the lowest point; ``points``:
     every geom's candidate lowest points and their geoms at that pose, when the caller has
     them."""
-    pts, owner = _points(model, data) if points is None else points
+    pts, owner = candidate_points(model, data) if points is None else points
     if not len(pts):
         return pts, owner, 0.0
     ext = _extent(pts)
@@ -196,15 +200,16 @@ def _subtree(model: mujoco.MjModel, body: int) -> list[int]:
     return out
 
 
-def ground_wheels(model: mujoco.MjModel, root: int, data: mujoco.MjData | None = None
-                  ) -> dict[str, np.ndarray]:
+def ground_wheels(model: mujoco.MjModel, root: int, data: mujoco.MjData | None = None,
+                  points: Points | None = None) -> dict[str, np.ndarray]:
     """Where hanging wheels' mounts go (``ground_wheels``, module docstring): per mount body's
     name, its displacement in the root's frame (empty when no wheel hangs). ``model``: the
     robot compiled, ``root``: its free-floating root body; ``data``: its kinematics at
-    ``qpos0``, made here when not given. The writer builds the robot again with the mounts
-    moved, so that the geometry joining them to the root follows them."""
+    ``qpos0``, made here when not given; ``points``: :func:`candidate_points` at that pose,
+    when the caller has them. The writer builds the robot again with the mounts moved, so that
+    the geometry joining them to the root follows them."""
     data = at_qpos0(model, data)
-    pts, owner = _points(model, data)
+    pts, owner = candidate_points(model, data) if points is None else points
     if not len(pts):
         return {}
     low = float(pts[:, 2].min())
@@ -233,15 +238,14 @@ def ground_wheels(model: mujoco.MjModel, root: int, data: mujoco.MjData | None =
 
 
 def _floor_boxes(model: mujoco.MjModel, data: mujoco.MjData, on_end: bool,
-                 points: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> list[tuple[int, np.ndarray, float]]:
+                 points: Points | None = None) -> list[tuple[int, np.ndarray, float]]:
     """The named box geoms of leaf links whose lowest corner lies within :data:`SOLE_TOL`
     ``· L`` of the robot's lowest point, lying (``on_end=False``: the axis nearest to vertical is
     not the longest) or standing on their end (``on_end=True``), tilted by ``0 < tilt <=``
     :data:`MAX_SOLE_TILT` degrees: ``(geom, up, tilt)``, ``up`` the box axis nearest to
-    vertical, pointing up (world frame). ``points``: :func:`_points` at ``data``'s pose, when
-    the caller has them."""
-    pts, owner = _points(model, data) if points is None else points
+    vertical, pointing up (world frame). ``points``: :func:`candidate_points` at ``data``'s
+    pose, when the caller has them."""
+    pts, owner = candidate_points(model, data) if points is None else points
     if not len(pts):
         return []
     low, ext = float(pts[:, 2].min()), _extent(pts)
@@ -277,27 +281,28 @@ def _lay_flat(spec: mujoco.MjSpec, model: mujoco.MjModel, data: mujoco.MjData, g
 
 
 def level_soles(spec: mujoco.MjSpec, model: mujoco.MjModel,
-                data: mujoco.MjData | None = None) -> bool:
+                data: mujoco.MjData | None = None, points: Points | None = None) -> bool:
     """Lay the robot's soles flat (``level_soles``, module docstring): changes the quaternions
     of the sole geoms of ``spec`` (``model``: ``spec`` compiled; ``data``: its kinematics at
-    ``qpos0``, made here when not given). Returns whether a sole was turned (``spec`` then needs
-    compiling again)."""
+    ``qpos0``, made here when not given; ``points``: :func:`candidate_points` at that pose).
+    Returns whether a sole was turned (``spec`` then needs compiling again; ``model`` and
+    ``data`` are left alone)."""
     data = at_qpos0(model, data)
-    soles = _floor_boxes(model, data, on_end=False)
+    soles = _floor_boxes(model, data, on_end=False, points=points)
     for g, up, _ in soles:
         _lay_flat(spec, model, data, g, up)
     return bool(soles)
 
 
 def level_stilts(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
-                 data: mujoco.MjData | None = None) -> bool:
+                 data: mujoco.MjData | None = None, points: Points | None = None) -> bool:
     """Stand a biped's stilts straight (``level_stilts``, module docstring): changes the
     quaternions of the stilt geoms of ``spec`` when the robot is a biped, its points within
     :data:`BIPED_TOL` ``· L`` of its lowest point on exactly two limbs of ``root`` (``model``:
-    ``spec`` compiled; ``data``: its kinematics at ``qpos0``, made here when not given). Returns
-    whether a stilt was turned."""
+    ``spec`` compiled; ``data``: its kinematics at ``qpos0``, made here when not given;
+    ``points``: :func:`candidate_points` at that pose). Returns whether a stilt was turned."""
     data = at_qpos0(model, data)
-    points = _points(model, data)
+    points = candidate_points(model, data) if points is None else points
     near = support_points(model, data, tol=BIPED_TOL, points=points)[1]
     legs = {_limb(model, int(model.geom_bodyid[g]), root) for g in near}
     if len(legs) != 2 or root in legs:
@@ -337,19 +342,20 @@ def _ankle(model: mujoco.MjModel, data: mujoco.MjData, foot: int, root: int,
 
 
 def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: float = 0.0,
-                 data: mujoco.MjData | None = None) -> bool:
+                 data: mujoco.MjData | None = None, points: Points | None = None) -> bool:
     """Add the ``home`` keyframe of the ankle strategy to ``spec`` (``balance_home``, module
     docstring; ``model``: ``spec`` compiled, ``root``: the free-floating root body). ``lift``:
     added to the root's height in the keyframe (the floor placement's shift of the root, which
     ``model`` does not have yet); ``data``: ``model``'s kinematics at ``qpos0`` (made here when
-    not given; its pose is changed). Returns whether a keyframe was added."""
+    not given; its pose is changed; ``points``: :func:`candidate_points` at ``qpos0``). Returns
+    whether a keyframe was added."""
     if any(k.name == "home" for k in spec.keys) or model.body_jntnum[root] < 1:
         return False
     free = int(model.body_jntadr[root])
     if model.jnt_type[free] != _FREE:
         return False
     data = at_qpos0(model, data)
-    pts, owner, _ = support_points(model, data)
+    pts, owner, _ = support_points(model, data, points=points)
     limbs = np.array([_limb(model, int(model.geom_bodyid[g]), root) for g in owner])
     legs = sorted(set(limbs.tolist()))
     if len(legs) != 2 or root in legs:
@@ -397,7 +403,7 @@ def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: fl
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
         if placed:
-            q[qadr + 2] += low0 - float(_points(model, data)[0][:, 2].min())
+            q[qadr + 2] += low0 - float(candidate_points(model, data)[0][:, 2].min())
             data.qpos[:] = q
             mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)

@@ -51,7 +51,14 @@ from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
-from robovae.generate.stance import at_qpos0, balance_home, ground_wheels, level_soles, level_stilts
+from robovae.generate.stance import (
+    at_qpos0,
+    balance_home,
+    candidate_points,
+    ground_wheels,
+    level_soles,
+    level_stilts,
+)
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
 
@@ -136,31 +143,35 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     model = _compile(spec)
     stance = stance and bool(builder.free_bodies) and model.ngeom > 0
     placed = clearance is not None and bool(builder.free_bodies) and model.ngeom > 0
-    # one MjData (about 0.35 ms to make) serves the stance rules and the floor placement
+    # one MjData (about 0.35 ms to make) serves the stance rules and the floor placement, and
+    # the stance rules share the geoms' candidate points of each compiled model
     kin = at_qpos0(model) if stance or placed else None
     root = robot_root(model)[0] if stance else -1  # the same body when built again
-    shifts = ground_wheels(model, root, kin) if stance else {}
+    pts = candidate_points(model, kin) if stance else None
+    shifts = ground_wheels(model, root, kin, pts) if stance else {}
     if shifts:  # built again, the mounts moved: their bridges follow them
         builder = SpecBuilder(data, fs, name, actuators, self_collision)
         builder.move_links(shifts)
         spec = builder.build()
         model = _compile(spec)
         kin = at_qpos0(model)
+        pts = candidate_points(model, kin)
     fired += builder.fixes + (["ground_wheels"] if shifts else [])
-    if stance:
-        levelled = [name for name, fires in (("level_soles", level_soles(spec, model, kin)),
-                                             ("level_stilts", level_stilts(spec, model, root, kin)))
-                    if fires]
+    if stance:  # both rules read the same model (level_soles changes only the spec)
+        levelled = [name for name, fires in
+                    (("level_soles", level_soles(spec, model, kin, pts)),
+                     ("level_stilts", level_stilts(spec, model, root, kin, pts))) if fires]
         if levelled:
             fired += levelled
             model = _compile(spec)
             kin = at_qpos0(model)
+            pts = candidate_points(model, kin)
     dz = 0.0
     if placed:
         dz = clearance - _lowest_point(model, kin)
         for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]
-    if stance and balance_home(spec, model, root, lift=dz, data=kin):
+    if stance and balance_home(spec, model, root, lift=dz, data=kin, points=pts):
         fired.append("balance_home")
     return spec, model, fired
 
