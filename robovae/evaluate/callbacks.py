@@ -15,6 +15,7 @@ cost of the latents, ``<stage>/KL_z``, its tree part ``<stage>/KL_tree`` and
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import lightning as L
 from torch_geometric.data import Batch
@@ -86,19 +87,22 @@ class ReconstructionMetrics(L.Callback):
         self.last[stage] = results
         summary = summarize(results)
         from_z = split_metrics_from_z(pl_module, robots)
+        # every rank scores the whole split with the same weights: the ranks' values agree, and
+        # sync_dist (their mean) logs that value under DDP without Lightning's warning per key
+        log = partial(pl_module.log, sync_dist=True)
         for name, value in from_z.items():
             if not math.isnan(value):
-                pl_module.log(f"{stage}/{name}", value, batch_size=len(results))
+                log(f"{stage}/{name}", value, batch_size=len(results))
         for key in ("ra", "ra_true", "exact", "fre"):
             value = summary[key]
             name = {"ra": "RA", "ra_true": "RA_true", "exact": "exact", "fre": "FRE"}[key]
             if not math.isnan(value):
-                pl_module.log(f"{stage}/{name}", value, batch_size=len(results))
+                log(f"{stage}/{name}", value, batch_size=len(results))
         if self.per_robot and len(results) <= self.max_per_robot:
             for r in results:
-                pl_module.log(f"{stage}/RA/{r.name}", r.ra, batch_size=1)
+                log(f"{stage}/RA/{r.name}", r.ra, batch_size=1)
                 if not math.isnan(r.fre):
-                    pl_module.log(f"{stage}/FRE/{r.name}", r.fre, batch_size=1)
+                    log(f"{stage}/FRE/{r.name}", r.fre, batch_size=1)
 
     def on_validation_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
         """Every ``every_n_epochs`` (and at the last epoch): decode the validation robots and
