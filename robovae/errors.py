@@ -17,6 +17,14 @@ class RobovaeError(Exception):
     """Base class of every error robovae raises on purpose."""
 
 
+def check_count(option: str, value: object, least: int) -> None:
+    """Refuse ``value`` unless it is an integer (not a bool) of at least ``least``: one line
+    ``robovae: <option> must be an integer of at least <least>, not <value>``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        raise RobovaeError(f"robovae: {option} must be an integer of at least {least}, "
+                           f"not {value!r}")
+
+
 class RobotFileError(RobovaeError):
     """A robot file that cannot become a robot graph.
 

@@ -47,7 +47,7 @@ from robovae.data.dataset import RobotDataset
 from robovae.data.graph import RobotData
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.data.workers import process_pool
-from robovae.errors import RobovaeError
+from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
 from robovae.evaluate.descriptors import DESCRIPTORS, descriptors, robot_category
 from robovae.evaluate.population import compare, latent_stats, summary
@@ -175,6 +175,18 @@ def _population(model: RoboVAE, graphs: Sequence[RobotData], files: Sequence[str
     return out
 
 
+def _check_counts(max_samples: int | None, entropy_seconds: float, **counts: int) -> None:
+    """Refuse a negative count (``max_samples`` below 1, a non-positive episode length) with
+    one line naming the option, before anything is loaded."""
+    for name, k in counts.items():
+        check_count(f"--{name}", k, 0)
+    if max_samples is not None:
+        check_count("--max-samples", max_samples, 1)
+    if not 0 < entropy_seconds < math.inf:
+        raise RobovaeError(f"robovae: --entropy-seconds must be a positive number, not "
+                           f"{entropy_seconds!r}")
+
+
 def analyze(ckpt: str | Path, samples: str | Path | None = None,
             sources: Sequence[str] | None = None, root: str | Path = "data_cache",
             behaviour: int = 100, jobs: int = 1, permutations: int = 200, seed: int = 0,
@@ -208,7 +220,24 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         ``quality`` (per-population records, table rows and numbers).
     """
     start = time.perf_counter()
+    _check_counts(behaviour=behaviour, jobs=jobs, permutations=permutations, quality=quality,
+                  procedural=procedural, max_samples=max_samples, entropy_seconds=entropy_seconds)
+    files = sample_files(samples) if samples is not None else []  # checked first
+    if samples is not None and not files:
+        raise RobovaeError(f"robovae: {samples}: no robot to analyse (no robot_*/robot.xml or "
+                           "*.xml, or none that its manifest calls valid)")
     model = load_model(ckpt)
+    graphs: list[RobotData] = []
+    errors: list[str] = []
+    if samples is not None:  # loaded before the training corpus is built (minutes)
+        if max_samples is not None:
+            files = files[:max_samples]
+        names = [n for n, _ in files]
+        graphs, errors = load_graphs([p for _, p in files], model.feature_set.name, names)
+        if not graphs:
+            first = f": {errors[0].removeprefix('robovae: ')}" if errors else ""
+            raise RobovaeError(f"robovae: {samples}: no robot loaded "
+                               f"({len(errors)} files failed{first})")
     train, what = training_graphs(model, ckpt, sources, root)
     entropy_kw = {"seconds": entropy_seconds}
     result: dict = {"checkpoint": str(ckpt), "feature_set": model.feature_set.name,
@@ -220,16 +249,6 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     train_files: list[str | None] = [None] * len(train)
     for i in with_source:
         train_files[i] = source_file(sources[i], root)
-    graphs: list[RobotData] = []
-    if samples is not None:
-        files = sample_files(samples)
-        if max_samples is not None:
-            files = files[:max_samples]
-        names = [n for n, _ in files]
-        graphs, errors = load_graphs([p for _, p in files], model.feature_set.name, names)
-        if not graphs:
-            raise RobovaeError(f"robovae: {samples}: no robot loaded "
-                               f"({len(errors)} files failed)")
     # the k-NN entropy of the larger population also on subsets of the smaller one's size
     result["training"] = {"what": what, **_population(
         model, train, train_files, behaviour, jobs, entropy_kw=entropy_kw,

@@ -140,11 +140,13 @@ def test_analyze_of_a_folder_without_robots_is_a_one_line_error(trained, tmp_pat
     _, _, ckpt = trained
     (tmp_path / "robot_000000").mkdir()
     (tmp_path / "robot_000000" / "robot.xml").write_text("<mujoco><worldbody><body></mujoco>")
+    cache = tmp_path.parent / f"{tmp_path.name}_cache"
     rc = main(["analyze", "--ckpt", str(ckpt), "--samples", str(tmp_path), "--behaviour", "0",
-               "--root", str(ckpt.parent / "cache")])
+               "--root", str(cache)])
     err = capsys.readouterr().err
     assert rc == 2 and err.startswith("robovae: ") and "no robot loaded" in err
-    assert "Traceback" not in err
+    assert "robot.xml: malformed XML" in err and len(err.strip().splitlines()) == 1
+    assert not cache.exists()  # refused before the training corpus is built
 
 
 def test_to_json() -> None:
