@@ -13,9 +13,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import NoReturn
 
 from robovae.errors import RobovaeError
 from robovae.evaluate.tables import format_table
@@ -152,10 +155,18 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (:class:`RobovaeError`), not its usage
+    text."""
+
+    def error(self, message: str) -> NoReturn:
+        raise RobovaeError(f"{self.prog}: {message} ({self.prog} --help lists the options)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``robovae`` argument parser: one sub-command per pipeline step."""
-    p = argparse.ArgumentParser(prog="robovae", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _Parser(prog="robovae", description=__doc__,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
     d = sub.add_parser("data", help="build a robot dataset and print a table")
     d.add_argument("--source", action="append", default=None,
@@ -292,10 +303,34 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+@contextlib.contextmanager
+def _one_line_warnings() -> Iterator[None]:
+    """robovae's own warnings (``robovae: ...``) print as their one line, not with Python's
+    second line of source; other warnings as Python prints them."""
+    python_format = warnings.formatwarning
+
+    def fmt(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+            line: str | None = None) -> str:
+        if str(message).startswith("robovae"):
+            return f"{message}\n"
+        return python_format(message, category, filename, lineno, line)
+
+    warnings.formatwarning = fmt
+    try:
+        yield
+    finally:
+        warnings.formatwarning = python_format
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``robovae`` console script."""
     explicit = argv is not None
     argv = list(sys.argv[1:] if argv is None else argv)
+    with _one_line_warnings():
+        return _main(argv, explicit)
+
+
+def _main(argv: list[str], explicit: bool) -> int:
     try:
         if argv and argv[0] in LIGHTNING_COMMANDS:
             from robovae.model.cli import run_lightning_cli
@@ -303,6 +338,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             run_lightning_cli(argv if explicit else None)
             return 0
         args = build_parser().parse_args(argv)
+        if getattr(args, "jobs", 0) < 0:
+            raise RobovaeError(f"robovae: --jobs must be 0 (all cores) or more, not {args.jobs}")
         if args.command == "data" and not args.source:
             args.source = ["zoo"]
         return args.func(args)

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from robovae.data.mjcf import mjcf_to_graph
-from robovae.errors import RobovaeError
+from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.graph_drawing import draw_graph
 from robovae.evaluate.metrics import reconstruction_metrics
 from robovae.evaluate.render import contact_sheet, side_by_side
@@ -66,7 +66,10 @@ def robot_files(paths: Sequence[str | Path]) -> list[Path]:
 
 def sample_sheet(paths: Sequence[str | Path], out: str | Path, first: int = 20,
                  columns: int = 5) -> Path:
-    """A contact sheet of the first ``first`` robots found in ``paths``."""
+    """A contact sheet of the first ``first`` robots found in ``paths``, ``columns`` to a
+    row (both at least 1)."""
+    check_count("--first", first, 1)
+    check_count("--columns", columns, 1)
     files = robot_files(paths)[:first]
     if not files:
         raise RobovaeError(f"robovae: {', '.join(map(str, paths))}: no robot files")

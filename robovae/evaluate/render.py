@@ -215,10 +215,14 @@ def contact_sheet(items: Sequence[Robot], path: str | os.PathLike, columns: int 
         labels: one label per item; default: file stem / model name.
         settle_seconds: passed to :func:`render_robot`.
 
-    A robot that cannot be loaded gets a grey tile labelled with the error (and a warning).
+    A robot that cannot be loaded gets a grey tile labelled as failed, and a one-line warning
+    naming it and the error.
 
     Returns:
         ``path`` as a ``Path``.
+
+    Raises:
+        RobovaeError: no robot could be drawn (the first one's error; nothing is written).
     """
     items = list(items)[: max_items if max_items is not None else None]
     if not items:
@@ -232,18 +236,23 @@ def contact_sheet(items: Sequence[Robot], path: str | os.PathLike, columns: int 
     rows = math.ceil(len(items) / cols)
     sheet = np.empty((rows * h, cols * w, 3), dtype=np.uint8)
     sheet[:] = _TILE_BG
-    texts = []
+    texts, failed = [], []
     for k, item in enumerate(items):
         r, c = divmod(k, cols)
         label = labels[k]
         try:
             tile = render_robot(item, w, h, settle_seconds=settle_seconds)
         except (RobovaeError, ValueError) as e:
-            warnings.warn(f"robovae: contact sheet tile {k} failed: {e}", stacklevel=2)
+            failed.append(f"tile {k} ({labels[k]}) left grey: "
+                          f"{str(e).removeprefix('robovae: ')}")
             tile = np.full((h, w, 3), 160, dtype=np.uint8)
             label = f"{label}\n(failed)"
         sheet[r * h:(r + 1) * h, c * w:(c + 1) * w] = tile
         texts.append((c * w + 4, r * h + 4, label))
+    if len(failed) == len(items):
+        raise RobovaeError(f"robovae: no robot drawn, nothing written to {path} ({failed[0]})")
+    for message in failed:
+        warnings.warn(f"robovae: contact sheet {message}", stacklevel=2)
     sheet[:, ::w] = 255  # thin separators between tiles
     sheet[::h, :] = 255
     return _save_labelled(sheet, path, texts, fontsize=max(6.0, min(10.0, h / 20)))

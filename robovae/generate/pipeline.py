@@ -41,7 +41,7 @@ import torch
 from robovae.data.graph import RobotData
 from robovae.data.tree_arrays import TreeArrays
 from robovae.data.workers import process_pool
-from robovae.errors import RobovaeError
+from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.generate.build import build_robot, warm_up
@@ -246,6 +246,8 @@ def generate(
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
                            f"not {n!r}")
+    check_count("--batch-size", batch_size, 1)
+    check_count("--jobs", jobs, 0)
     start = time.perf_counter()
     model = own_model(model)
     if prior is not None:

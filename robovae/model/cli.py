@@ -19,7 +19,9 @@ newest ``last*.ckpt`` of the checkpoint folder; the run continues exactly, see
 from __future__ import annotations
 
 import pickle
+import sys
 import warnings
+from argparse import ArgumentError
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -87,13 +89,28 @@ def run_lightning_cli(argv: Sequence[str] | None = None) -> RoboVAECLI:
         return _cli(argv)
     except pickle.UnpicklingError as e:  # a checkpoint Lightning found itself (``last``)
         raise refusal(None, e) from None
+    except ArgumentError as e:  # jsonargparse's, instead of its usage text and exit
+        raise RobovaeError(_parse_error(list(sys.argv[1:] if argv is None else argv), e)) \
+            from None
+
+
+def _parse_error(argv: list[str], e: ArgumentError) -> str:
+    """One line for a parse error: the sub-command, its config files, the message."""
+    sub = argv[0] if argv else "COMMAND"
+    configs = [b for a, b in zip(argv, argv[1:]) if a in ("-c", "--config")]
+    configs += [a.split("=", 1)[1] for a in argv if a.startswith("--config=")]
+    where = f" ({', '.join(configs)})" if configs else ""
+    return (f"robovae {sub}{where}: {' '.join(str(e).split())} (robovae {sub} --help lists the "
+            "options)")
 
 
 def _cli(argv: Sequence[str] | None) -> RoboVAECLI:
+    one_line = {"exit_on_error": False}  # a parse error raises (run_lightning_cli: one line)
     return RoboVAECLI(
         RoboVAE,
         RobotDataModule,
         args=list(argv) if argv is not None else None,
+        parser_kwargs={**one_line, **{sub: dict(one_line) for sub in RoboVAECLI.subcommands()}},
         seed_everything_default=0,
         save_config_kwargs={"overwrite": True},
         trainer_defaults={

@@ -18,6 +18,7 @@ from robovae.data.features import get_feature_set
 from robovae.data.graph import tree_data
 from robovae.data.loading import load_robot
 from robovae.data.zoo import zoo_files
+from robovae.errors import RobovaeError
 from robovae.evaluate import render as R
 from robovae.evaluate.camera import auto_camera, camera_axes, robot_bounds, robot_points
 from robovae.evaluate.graph_drawing import draw_graph, tree_layout
@@ -209,10 +210,19 @@ def test_contact_sheet(tmp_path: Path) -> None:
 def test_contact_sheet_bad_file_gets_a_tile(tmp_path: Path) -> None:
     bad = tmp_path / "bad.xml"
     bad.write_text("<mujoco><worldbody><body></mujoco>")
-    with pytest.warns(UserWarning, match="tile 1 failed"):
-        out = R.contact_sheet([_legged_spec(), bad], tmp_path / "s.png", size=(80, 60))
+    with pytest.warns(UserWarning, match=r"tile 1 \(bad\) left grey: .*bad.xml: malformed"):
+        out = R.contact_sheet([_legged_spec(), bad], tmp_path / "s.png", size=(80, 60),
+                              labels=["good", "bad"])
     with Image.open(out) as im:
         assert im.size == (160, 60)
+
+
+def test_contact_sheet_of_no_drawable_robot_is_an_error(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><worldbody><body></mujoco>")
+    with pytest.raises(RobovaeError, match=r"no robot drawn.*tile 0 \(bad\) left grey.*bad.xml"):
+        R.contact_sheet([bad, bad], tmp_path / "s.png", size=(80, 60))
+    assert not (tmp_path / "s.png").exists()
 
 
 def test_side_by_side(tmp_path: Path) -> None:

@@ -201,11 +201,20 @@ def test_cli_generate_n_must_be_a_positive_integer(trained, n, tmp_path, capsys)
     assert not (tmp_path / "g").exists()  # nothing written
 
 
-def test_cli_generate_n_not_an_integer_is_a_usage_error(trained, tmp_path):
+def test_cli_generate_n_not_an_integer_is_a_one_line_usage_error(trained, tmp_path, capsys):
     _, _, ckpt = trained
-    with pytest.raises(SystemExit) as e:
-        main(["generate", "--ckpt", str(ckpt), "-n", "2.5", "--out", str(tmp_path / "g")])
-    assert e.value.code == 2 and not (tmp_path / "g").exists()
+    code = main(["generate", "--ckpt", str(ckpt), "-n", "2.5", "--out", str(tmp_path / "g")])
+    assert code == 2 and not (tmp_path / "g").exists()
+    assert capsys.readouterr().err == ("robovae generate: argument -n: invalid int value: '2.5' "
+                                       "(robovae generate --help lists the options)\n")
+
+
+def test_generate_batch_size_and_jobs_are_checked(trained, tmp_path):
+    _, _, ckpt = trained
+    for kw in ({"batch_size": 0}, {"batch_size": 2.0}, {"jobs": -1}):
+        with pytest.raises(RobovaeError, match="must be an integer of at least"):
+            generate(ckpt, 3, tmp_path / "g", progress=False, **kw)
+    assert not (tmp_path / "g").exists()
 
 
 def test_generate_n_must_be_a_positive_integer(trained, tmp_path):

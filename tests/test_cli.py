@@ -1,0 +1,98 @@
+"""The robovae command's conventions: bad input is one line on stderr, exit status 2."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from robovae.cli import main
+from robovae.data.zoo import zoo_files
+
+BAD_XML = "<mujoco><worldbody><body></mujoco>"
+
+
+@pytest.mark.parametrize("argv", [
+    ["data", "--root", "{tmp}/cache"],
+    ["generate", "--ckpt", "{tmp}/none.ckpt", "--out", "{tmp}/out"],
+    ["optimize", "--ckpt", "{tmp}/none.ckpt", "--task", "walk", "--budget", "2",
+     "--out", "{tmp}/out"],
+    ["analyze", "--ckpt", "{tmp}/none.ckpt", "--root", "{tmp}/cache"],
+])
+def test_negative_jobs_is_a_one_line_error(argv, tmp_path, capsys) -> None:
+    args = [a.format(tmp=tmp_path) for a in argv] + ["--jobs", "-3"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err == "robovae: --jobs must be 0 (all cores) or more, not -3\n"
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def _render(tmp_path: Path, *robots: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    return subprocess.run([sys.executable, "-m", "robovae.cli", "render", *map(str, robots),
+                           "--out", str(tmp_path / "sheet.png")], env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_render_names_a_bad_file_in_one_line(tmp_path) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text(BAD_XML)
+    hopper = dict(zoo_files()[0])["gym_hopper"]
+    got = _render(tmp_path, hopper, bad)
+    assert got.returncode == 0, got.stderr[-2000:]
+    lines = got.stderr.splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith(f"robovae: contact sheet tile 1 (bad) left grey: {bad}: "
+                               "malformed XML (")
+    assert (tmp_path / "sheet.png").is_file()
+    (tmp_path / "sheet.png").unlink()
+    got = _render(tmp_path, bad)  # no robot to draw: an error, no sheet
+    assert got.returncode == 2
+    lines = got.stderr.splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith(f"robovae: no robot drawn, nothing written to "
+                               f"{tmp_path / 'sheet.png'} (tile 0 (bad) left grey: {bad}: "
+                               "malformed XML (")
+    assert not (tmp_path / "sheet.png").exists()
+
+
+@pytest.mark.parametrize("argv, expect", [
+    (["fitt"], "robovae: argument command: invalid choice: 'fitt'"),
+    (["generate", "--ckpt", "x"], "robovae generate: the following arguments are required: --out"),
+    (["fit", "--config", "{tmp}/none.yaml"],
+     "robovae fit ({tmp}/none.yaml): Parser key \"config\": File does not exist"),
+    (["fit", "--config", "{tmp}/bad.yaml"],
+     "robovae fit ({tmp}/bad.yaml): Subcommand 'fit' does not accept option 'model.bogus'"),
+    (["test", "--nosuchflag", "3"], "robovae test: unrecognized arguments: --nosuchflag 3"),
+])
+def test_usage_errors_are_one_line(argv, expect, tmp_path, capsys) -> None:
+    (tmp_path / "bad.yaml").write_text("model: {bogus: 1}\n")
+    assert main([a.format(tmp=tmp_path) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(expect.format(tmp=tmp_path)) and err.count("\n") == 1
+    assert err.rstrip().endswith("--help lists the options)")
+
+
+@pytest.mark.parametrize("option", [["--first", "0"], ["--columns", "0"], ["--columns", "-1"]])
+def test_render_counts_must_be_positive(option, tmp_path, capsys) -> None:
+    hopper = dict(zoo_files()[0])["gym_hopper"]
+    assert main(["render", str(hopper), "--out", str(tmp_path / "s.png"), *option]) == 2
+    assert capsys.readouterr().err == (f"robovae: {option[0]} must be an integer of at least 1, "
+                                       f"not {int(option[1])}\n")
+    assert not (tmp_path / "s.png").exists()
+
+
+@pytest.mark.parametrize("option, value, least", [
+    ("--max-samples", "0", 1), ("--max-samples", "-2", 1), ("--quality", "-1", 0),
+    ("--behaviour", "-1", 0), ("--permutations", "-5", 0), ("--procedural", "-1", 0),
+])
+def test_analyze_counts_are_checked_first(option, value, least, tmp_path, capsys) -> None:
+    argv = ["analyze", "--ckpt", str(tmp_path / "none.ckpt"), "--samples", str(tmp_path),
+            "--root", str(tmp_path / "cache"), option, value]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (f"robovae: {option} must be an integer of at least "
+                                       f"{least}, not {value}\n")
+    assert list(tmp_path.iterdir()) == []
