@@ -76,6 +76,8 @@ def scan_robot_file(path: str | Path) -> None:
             :data:`MAX_TEXTURE_PIXELS`, an include that is not a regular file.
     """
     path = Path(path)
+    if path.is_dir():
+        raise RobotFileError(path, "a folder, not a robot file (want .xml or .urdf)")
     if path.suffix.lower() not in SUFFIXES:
         raise RobotFileError(path, f"unsupported file type '{path.suffix}' (want .xml or .urdf)")
     if not path.exists():

@@ -255,6 +255,9 @@ class WalkEnv(MujocoEnv):
             raise RobovaeError(f"robovae: WalkEnv needs frame_skip >= 1, 0 <= max_tilt <= 180 "
                                f"and reset_noise_scale >= 0, got {frame_skip}, {max_tilt}, "
                                f"{reset_noise_scale}")
+        if int(width) < 1 or int(height) < 1:
+            raise RobovaeError(f"robovae: WalkEnv needs a render size of at least 1 x 1 pixels, "
+                               f"got {width} x {height}")
         self.robot_path = Path(robot).resolve()
         self.spec_, self.scene = walk_scene(self.robot_path, free_base=free_base)
         model = self.scene.model

@@ -216,9 +216,10 @@ def test_missing_file_wrong_suffix_and_folders(tmp_path):
     (tmp_path / "robot.txt").write_text("<mujoco/>")
     with pytest.raises(RobotFileError, match="unsupported file type"):
         mjcf_to_graph(tmp_path / "robot.txt")
-    (tmp_path / "folder.xml").mkdir()
-    with pytest.raises(RobotFileError, match="not a regular file"):
-        mjcf_to_graph(tmp_path / "folder.xml")
+    for folder in ("folder.xml", "robots"):
+        (tmp_path / folder).mkdir()
+        with pytest.raises(RobotFileError, match=f"{folder}: a folder, not a robot file"):
+            mjcf_to_graph(tmp_path / folder)
     (tmp_path / "blank.xml").write_text("  \n\t\n")
     with pytest.raises(RobotFileError, match="empty file"):
         mjcf_to_graph(tmp_path / "blank.xml")

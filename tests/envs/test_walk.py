@@ -165,6 +165,17 @@ def test_bad_robots_raise_one_line(tmp_path):
     assert "\n" not in str(e.value) and "junk.xml" in str(e.value)
 
 
+@pytest.mark.parametrize("kw, match", [
+    ({"frame_skip": 0}, "frame_skip >= 1"), ({"max_tilt": 200.0}, "max_tilt <= 180"),
+    ({"reset_noise_scale": -0.1}, "reset_noise_scale >= 0"),
+    ({"width": -5, "render_mode": "rgb_array"}, "at least 1 x 1 pixels, got -5 x 480"),
+])
+def test_bad_settings_raise_one_line(robots, kw, match):
+    with pytest.raises(RobovaeError, match=match) as e:
+        gymnasium.make("robovae/Walk-v0", robot=robots[0], **kw)
+    assert "\n" not in str(e.value)
+
+
 def test_render_rgb_array(robots):
     env = WalkEnv(robots[0], render_mode="rgb_array", width=64, height=48)
     env.reset(seed=0)
