@@ -72,6 +72,13 @@ def _where(msg: str) -> tuple[str, str | None]:
     return what, where
 
 
+def mujoco_error_line(msg: str) -> str:
+    """A MuJoCo load or compile error as one line, ``what (element/line)``: its XML parse
+    errors named (``malformed XML (XML_ERROR_...) (line N)``)."""
+    what, where = _where(msg)
+    return f"{what} ({where})" if where else what
+
+
 @contextlib.contextmanager
 def capture_mujoco_warnings() -> Iterator[list[str]]:
     """Collect MuJoCo's warnings into a list instead of printing them and writing

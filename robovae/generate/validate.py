@@ -48,8 +48,14 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from robovae.data.loading import capture_mujoco_warnings, drop_missing_assets
+from robovae.data.loading import (
+    capture_mujoco_warnings,
+    drop_missing_assets,
+    mujoco_error_line,
+)
+from robovae.data.robot_file import scan_robot_file
 from robovae.data.workers import process_pool
+from robovae.errors import RobotFileError
 from robovae.evaluate.quality.stage import FLOOR, Stage, stage_compiled
 from robovae.evaluate.quality.standing import HeldRun, first_steps
 
@@ -109,6 +115,18 @@ def _compile(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjsGeom | None, mujoco.M
         floor = spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE,
                                         size=[0, 0, 0.05])
     return spec, floor, spec.compile()
+
+
+def _why_not(path: Path, e: Exception) -> str:
+    """What is wrong with a file MuJoCo did not load, in one line: the robot-file check's
+    finding (a folder, a missing or empty file, ...), else MuJoCo's message as the loader words
+    it (``malformed XML (XML_ERROR_...) (line N)``). Run only after a failure: a valid robot's
+    path stays as lean as it was."""
+    try:
+        scan_robot_file(path)
+    except RobotFileError as found:
+        return found.line().removeprefix(f"robovae: {found.path}: ")
+    return mujoco_error_line(str(e)) if str(e).strip() else type(e).__name__
 
 
 def _step_by_step(path: Path, model: mujoco.MjModel, data: mujoco.MjData, start: np.ndarray,
@@ -226,8 +244,7 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
         try:
             spec, floor, model = _compile(path)
         except Exception as e:
-            what = str(e).strip().splitlines()[0] if str(e).strip() else e
-            return Checked(fail("compile", what), None, None, None)
+            return Checked(fail("compile", _why_not(path, e)), None, None, None)
         if not (model.jnt_type != mujoco.mjtJoint.mjJNT_FREE).any():
             return Checked(fail("degenerate", f"{model.nbody - 1} bodies and no joint besides a "
                                 "free base: nothing moves"), model, spec, floor)

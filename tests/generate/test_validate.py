@@ -47,6 +47,16 @@ def test_compile_error_is_a_reason_not_an_exception(tmp_path):
     bad.write_text("<mujoco><worldbody><body><geom type='sphere'/>")
     v = validate_robot(bad)
     assert (v.valid, v.reason) == (False, "compile") and "\n" not in v.detail
+    assert v.detail.startswith("malformed XML (XML_ERROR_")  # was MuJoCo's "XML parse error 8:"
+    size = tmp_path / "size.xml"
+    size.write_text("<mujoco><worldbody><body><joint/><geom type='box' size='0.1'/></body>"
+                    "</worldbody></mujoco>")
+    assert validate_robot(size).detail == "size 1 must be positive in geom (unnamed element, " \
+                                          "line 1)"
+    for path, what in ((tmp_path, "a folder, not a robot file"), (tmp_path / "no.xml",
+                                                                  "no such file")):
+        v = validate_robot(path)
+        assert (v.reason, v.detail.split(" (")[0]) == ("compile", what)
 
 
 def test_self_penetration_at_rest(tmp_path):
