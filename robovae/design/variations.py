@@ -17,9 +17,10 @@ folder has the layout of ``robovae generate`` (``robot_<i>/robot.xml``, ``manife
 **Paths** (``robovae interpolate A.xml B.xml --steps K --out DIR``, :func:`interpolate_files`):
 :func:`robovae.generate.interpolate.interpolate` decodes ``K`` evenly spaced points of the line
 between the two robots' latent means, writes ``step_<k>/robot.xml``, validates each in MuJoCo,
-and a contact sheet ``sheet.png`` (one tile per step, labelled with ``t`` and the validity) and
-``path.json`` are added. The folder is built next to ``DIR`` and renamed into place when
-complete: a failure leaves no partial ``DIR``.
+and a contact sheet ``sheet.png`` (one tile per step, labelled with ``t`` and the validity; at
+most :data:`SHEET_STEPS` tiles, evenly spaced, for longer paths) and ``path.json`` are added.
+The folder is built next to ``DIR`` and renamed into place when complete: a failure leaves no
+partial ``DIR``.
 
 Bad input is refused with one line before anything is written: a file that is not a robot
 (:class:`~robovae.errors.RobotFileError`), ``R < 0``, ``n < 1``, ``K < 2``, a checkpoint that is
@@ -132,6 +133,16 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 
 
+#: Most steps drawn on an interpolation's contact sheet.
+SHEET_STEPS = 48
+
+
+def sheet_steps(steps: int) -> list[int]:
+    """The steps a path's contact sheet shows: every one up to :data:`SHEET_STEPS`, else
+    that many evenly spaced, both ends included."""
+    return sorted({round(k) for k in np.linspace(0, steps - 1, min(steps, SHEET_STEPS))})
+
+
 def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str | os.PathLike,
                       steps: int, out: str | os.PathLike, validate: bool = True,
                       sheet: bool = True) -> dict:
@@ -164,10 +175,11 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
              "reason": s.validation.reason if s.validation else None} for s in path]}
         result["sheet"] = None
         if sheet:
+            drawn = [result["steps"][k] for k in sheet_steps(steps)]
             labels = [f"t = {s['t']:.2f}" + (f"  {s['reason']}" if s["reason"] else "")
-                      for s in result["steps"]]
-            contact_sheet([tmp / s["path"] for s in result["steps"]], tmp / "sheet.png",
-                          columns=min(steps, 6), labels=labels)
+                      for s in drawn]
+            contact_sheet([tmp / s["path"] for s in drawn], tmp / "sheet.png",
+                          columns=min(len(drawn), 6), labels=labels)
             result["sheet"] = str(out / "sheet.png")
         (tmp / "path.json").write_text(json.dumps(result, indent=1))
         if out.exists():

@@ -59,19 +59,31 @@ def latent_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11
     return t, z, [(1 - tk) * wa + tk * wb for tk in tt[:, :, None]]
 
 
+#: Steps decoded at once (the decoder's memory grows with the batch).
+DECODE_BATCH = 256
+
+
+def step_name(k: int, steps: int) -> str:
+    """``step_<k>``, ``k`` zero-padded to the width of the last step's index (at least 2)."""
+    return f"step_{k:0{max(2, len(str(steps - 1)))}d}"
+
+
 def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
                 out: str | Path | None = None, validate: bool = True) -> list[Step]:
-    """Decode the latent path from ``a`` to ``b``; with ``out``, write each step's MJCF under
-    ``out/step_<k>/`` and (``validate``) simulate it (see the module docstring)."""
+    """Decode the latent path from ``a`` to ``b`` (:data:`DECODE_BATCH` steps at a time);
+    with ``out``, write each step's MJCF under ``out/step_<k>/`` (:func:`step_name`) and
+    (``validate``) simulate it (see the module docstring)."""
     t, z, w = latent_path(model, a, b, steps)
-    graphs = model.decode(z, node_latents=w, clamp=False)
+    graphs = [g for i in range(0, steps, DECODE_BATCH) for g in model.decode(
+        z[i:i + DECODE_BATCH], node_latents=w[i:i + DECODE_BATCH], clamp=False)]
     result = []
     for k, (tk, g) in enumerate(zip(t.tolist(), graphs)):
         g, _ = decoded_fixes(g, model.feature_set, mirror=False)
         step = Step(tk, g)
         if out is not None:
-            written = write_robot(g, Path(out) / f"step_{k:02d}", model.feature_set,
-                                  name=f"step_{k:02d}", stance=True)
+            name = step_name(k, steps)
+            written = write_robot(g, Path(out) / name, model.feature_set, name=name,
+                                  stance=True)
             step.path = Path(written.robot_path)
             if validate:
                 step.validation = validate_robot(step.path)

@@ -9,7 +9,7 @@ import pytest
 
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
-from robovae.design.variations import ball_offsets, encode_file
+from robovae.design.variations import SHEET_STEPS, ball_offsets, encode_file, sheet_steps
 
 
 @pytest.fixture(scope="module")
@@ -87,6 +87,14 @@ def test_like_refuses_a_file_that_is_not_a_robot(trained_nodes, files, tmp_path,
                  str(out)]) == 2
     err = capsys.readouterr().err
     assert "junk.xml" in err and err.count("\n") == 1 and not out.exists()
+
+
+def test_a_long_path_shows_evenly_spaced_steps_on_its_sheet():
+    assert sheet_steps(3) == [0, 1, 2] and sheet_steps(SHEET_STEPS) == list(range(SHEET_STEPS))
+    shown = sheet_steps(1000)
+    assert len(shown) == SHEET_STEPS and shown[0] == 0 and shown[-1] == 999
+    gaps = np.diff(shown)
+    assert gaps.min() >= 21 and gaps.max() <= 22  # 999 / 47 = 21.3
 
 
 def test_interpolate_writes_steps_and_sheet(trained_nodes, files, tmp_path, capsys):

@@ -7,7 +7,9 @@ import pytest
 import torch
 from torch_geometric.data import Batch
 
-from robovae.generate.interpolate import interpolate, latent_path
+from robovae.generate import interpolate as interpolate_module
+from robovae.generate.interpolate import interpolate, latent_path, step_name
+from robovae.model.checkpoint import own_model
 
 
 def test_path_starts_and_ends_at_the_encoded_means(trained):
@@ -51,3 +53,24 @@ def test_every_step_is_written_and_validated(fixture, request, tmp_path):
     assert steps[-1].graph.num_nodes == model.reconstruct(b)[0].num_nodes
     no_files = interpolate(model, a, b, steps=2)
     assert no_files[0].path is None and no_files[0].validation is None
+
+
+def test_long_paths_decode_in_batches_alike(trained_nodes, monkeypatch):
+    """A path decodes DECODE_BATCH steps at a time (``--steps 100000`` in one batch was killed
+    for want of memory); batches of 2 give the same robots as one batch."""
+    model, dm, _ = trained_nodes
+    model = own_model(model).to(torch.float64)  # a copy, as interpolate_files decodes
+    a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
+    whole = interpolate(model, a, b, steps=5)
+    monkeypatch.setattr(interpolate_module, "DECODE_BATCH", 2)
+    batched = interpolate(model, a, b, steps=5)
+    for s, r in zip(whole, batched, strict=True):
+        assert torch.equal(s.graph.parent, r.graph.parent)
+        assert torch.equal(s.graph.node_type, r.graph.node_type)
+        assert torch.equal(s.graph.x, r.graph.x)
+
+
+def test_step_names_sort_in_path_order():
+    assert [step_name(k, 3) for k in (0, 2)] == ["step_00", "step_02"]
+    names = [step_name(k, 1001) for k in (0, 9, 99, 1000)]
+    assert names == ["step_0000", "step_0009", "step_0099", "step_1000"] == sorted(names)
