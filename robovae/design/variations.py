@@ -36,6 +36,8 @@ import os
 import shutil
 import tempfile
 import time
+from concurrent.futures import Executor
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +55,7 @@ from robovae.generate.pipeline import (
     open_manifest,
     read_manifest,
     summarize,
+    worker_pool,
     write_records,
 )
 from robovae.generate.writer import WRITER
@@ -90,6 +93,11 @@ def _check_out(out: Path) -> None:
         raise RobovaeError(f"robovae: {out}: exists and is not empty; choose another --out")
 
 
+#: Variations decoded, written and added to the manifest at a time (memory; a killed run
+#: resumes after its last whole batch).
+LIKE_BATCH = 256
+
+
 def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius: float, n: int,
                   out: str | os.PathLike, seed: int = 0, validate: bool = True, jobs: int = 0,
                   scene: bool = True, overwrite: bool = False,
@@ -114,23 +122,33 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     model = model.to(torch.float64)  # as robovae generate: a robot never depends on its batch
     mu, w = mu.to(torch.float64), w.to(torch.float64)
     todo = [i for i in range(n) if i not in read_manifest(out)]
+    jobs = jobs or (os.cpu_count() or 1)
+    with worker_pool(jobs, warm=True) if jobs > 1 and len(todo) >= 4 else nullcontext() as pool:
+        for k in range(0, len(todo), LIKE_BATCH):
+            _like_batch(model, todo[k:k + LIKE_BATCH], mu, w, robot, radius, out, seed,
+                        validate, jobs, scene, floating, pool)
+    return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
+
+
+def _like_batch(model: RoboVAE, chunk: list[int], mu: torch.Tensor, w: torch.Tensor,
+                robot: str | os.PathLike, radius: float, out: Path, seed: int, validate: bool,
+                jobs: int, scene: bool, floating: bool, pool: Executor | None) -> None:
+    """Decode, write and log variations ``chunk`` (:func:`generate_like`)."""
     zs, ws = [], []
-    for i in todo:
+    for i in chunk:
         rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, i])))
         zs.append(mu + torch.from_numpy(ball_offsets(rng, 1, mu.numel(), radius)[0]))
         ws.append(w + torch.from_numpy(ball_offsets(rng, w.shape[0], w.shape[1], radius)))
-    if todo:
-        z = torch.stack(zs)
-        nodes = ws if model.hparams.get("node_latent_dim") else None
-        graphs = model.decode(z, node_latents=nodes, clamp=nodes is None)
-        records = write_records(model, todo, z, graphs, out, seed=seed, validate=validate,
-                                jobs=jobs, scene=scene, floating=floating)
-        for rec in records:
-            rec.pop("temperature", None)
-            rec.update(like=str(robot), radius=radius)
-        with open_manifest(out / MANIFEST) as manifest:
-            append_records(manifest, records)
-    return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
+    z = torch.stack(zs)
+    nodes = ws if model.hparams.get("node_latent_dim") else None
+    graphs = model.decode(z, node_latents=nodes, clamp=nodes is None)
+    records = write_records(model, chunk, z, graphs, out, seed=seed, validate=validate,
+                            jobs=jobs, scene=scene, floating=floating, pool=pool)
+    for rec in records:
+        rec.pop("temperature", None)
+        rec.update(like=str(robot), radius=radius)
+    with open_manifest(out / MANIFEST) as manifest:
+        append_records(manifest, records)
 
 
 #: Most steps drawn on an interpolation's contact sheet.

@@ -9,6 +9,7 @@ import pytest
 
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
+from robovae.design import variations
 from robovae.design.variations import SHEET_STEPS, ball_offsets, encode_file, sheet_steps
 
 
@@ -55,6 +56,24 @@ def test_like_writes_variations_within_radius(trained_nodes, files, tmp_path, ca
     assert main(argv(5)) == 0
     assert (out / "robot_000001" / "robot.xml").read_bytes() == before
     assert (out / "robot_000004" / "robot.xml").is_file()
+
+
+def test_like_in_batches_writes_the_same_robots(trained_nodes, files, tmp_path, monkeypatch):
+    """Variations are decoded, written and logged LIKE_BATCH at a time; batches of 2 give
+    the same files and records as one batch."""
+    _, _, ckpt = trained_nodes
+    a, _, _ = files
+
+    def run(out):
+        assert main(["generate", "--ckpt", str(ckpt), "--like", str(a), "--radius", "0.3",
+                     "-n", "5", "--out", str(out), "--jobs", "1", "--no-validate"]) == 0
+        recs = [json.loads(x) for x in (out / "manifest.jsonl").read_text().splitlines()]
+        return ([{k: v for k, v in r.items() if k != "seconds"} for r in recs],
+                [(out / r["path"]).read_bytes() for r in recs])
+
+    whole = run(tmp_path / "whole")
+    monkeypatch.setattr(variations, "LIKE_BATCH", 2)
+    assert run(tmp_path / "batched") == whole
 
 
 def test_radius_zero_gives_the_reconstruction(trained_nodes, files, tmp_path):
