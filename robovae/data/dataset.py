@@ -123,7 +123,15 @@ class RobotDataset(InMemoryDataset):
         self.feature_set = self._resolved.feature_set or feature_set
         get_feature_set(self.feature_set)  # fail early on unknown names
         self._key = self._fingerprint()
-        super().__init__(str(root), transform=transform, force_reload=force_reload, log=False)
+        made = [d for d in (root / "processed", root / "raw", root) if not d.exists()]
+        try:
+            super().__init__(str(root), transform=transform, force_reload=force_reload,
+                             log=False)
+        except BaseException:  # a failed build leaves no empty cache folders behind
+            for d in made:
+                if d.is_dir() and not any(d.iterdir()):
+                    d.rmdir()
+            raise
         self.load(self.processed_paths[0], data_cls=RobotData)
         self.report = json.loads(Path(self.processed_paths[1]).read_text())
 
@@ -222,10 +230,10 @@ class RobotDataset(InMemoryDataset):
             names.add(g.name)
             seen[key] = g.name
             kept.append(g)
-        if not kept:
-            lines = "\n".join(skipped)
-            raise RobovaeError(f"robovae: no robot loaded from sources {self.sources}"
-                               + (f"\n{lines}" if lines else ""))
+        if not kept:  # one line: the first failed file's error (each file's is in skipped)
+            more = f" ({len(skipped)} files failed, the first shown)" if len(skipped) > 1 else ""
+            raise RobovaeError((f"{skipped[0]}; " if skipped else "robovae: ")
+                               + f"no robot loaded from sources {self.sources}{more}")
         report = {"robots": [summary_row(g) for g in kept], "skipped": skipped,
                   "duplicates": duplicates, "warnings": self._resolved.warnings,
                   "sources": self.sources, "feature_set": self.feature_set}

@@ -96,6 +96,30 @@ def test_menagerie_unknown_name(tmp_path, monkeypatch, menagerie_dir):
         RobotDataset(tmp_path, ["menagerie:nobot"], progress=False)
 
 
+def test_only_bad_files_give_one_line_and_leave_no_cache_folder(tmp_path):
+    """Every source file broken: one line naming the first file and its element, and the
+    cache folders the build made are gone again (a good robot beside them is kept)."""
+    from robovae.errors import RobovaeError
+
+    src = tmp_path / "robots"
+    src.mkdir()
+    for name in ("a", "b"):
+        (src / f"{name}.xml").write_text("<mujoco><worldbody><body><geom type='sphere' "
+                                         "size='x'/></body></worldbody></mujoco>")
+    root = tmp_path / "cache"
+    with pytest.raises(RobovaeError) as e:
+        RobotDataset(root, [f"dir:{src}"], progress=False, jobs=1)
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith(f"robovae: {src / 'a.xml'}: ")
+    assert "element 'geom'" in msg and "2 files failed" in msg
+    assert not root.exists()
+    (src / "c.xml").write_text("<mujoco><worldbody><body><joint/><geom size='0.1'/>"
+                               "<body pos='0 0 .2'><joint/><geom size='.1'/></body></body>"
+                               "</worldbody></mujoco>")
+    ds = RobotDataset(root, [f"dir:{src}"], progress=False, jobs=1)
+    assert ds.names == ["c"] and len(ds.report["skipped"]) == 2
+
+
 def test_datamodule_split_by_name_fits_normalizer_on_train(cache_root, menagerie_dir):
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
                          train_names=["go1", "a1"], test_names=["go2"], batch_size=2)
