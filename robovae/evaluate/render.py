@@ -46,6 +46,9 @@ from robovae.evaluate.scene import (  # noqa: E402
 __all__ = ["contact_sheet", "render_robot", "robot_camera", "save_png", "side_by_side"]
 
 _TILE_BG = np.array([235, 235, 235], dtype=np.uint8)
+#: Largest contact sheet drawn, in pixels (about 1,150 tiles of 240 x 180): beyond it the sheet
+#: is refused before any robot is rendered (100,000 tiles would be a 13 GB image).
+MAX_SHEET_PIXELS = 50_000_000
 
 
 def _gl_backend() -> str:
@@ -222,11 +225,17 @@ def contact_sheet(items: Sequence[Robot], path: str | os.PathLike, columns: int 
         ``path`` as a ``Path``.
 
     Raises:
-        RobovaeError: no robot could be drawn (the first one's error; nothing is written).
+        RobovaeError: no robot could be drawn (the first one's error; nothing is written), or
+            the sheet would exceed :data:`MAX_SHEET_PIXELS` (refused before any rendering).
     """
     items = list(items)[: max_items if max_items is not None else None]
     if not items:
         raise ValueError("robovae: contact_sheet needs at least one robot")
+    if len(items) * size[0] * size[1] > MAX_SHEET_PIXELS:
+        raise RobovaeError(f"robovae: a contact sheet of {len(items)} robots of {size[0]}x"
+                           f"{size[1]} px is over {MAX_SHEET_PIXELS:,} pixels: draw at most "
+                           f"{MAX_SHEET_PIXELS // (size[0] * size[1])} (render --first); "
+                           f"nothing written to {path}")
     labels = list(labels) if labels is not None else [_label_of(it, i)
                                                       for i, it in enumerate(items)]
     if len(labels) < len(items):

@@ -225,6 +225,15 @@ def test_contact_sheet_of_no_drawable_robot_is_an_error(tmp_path: Path) -> None:
     assert not (tmp_path / "s.png").exists()
 
 
+def test_contact_sheet_too_large_is_refused_before_rendering(tmp_path: Path) -> None:
+    """Over MAX_SHEET_PIXELS nothing is drawn (the missing files are never opened)."""
+    missing = [tmp_path / f"r{k}.xml" for k in range(51)]
+    with pytest.raises(RobovaeError, match=r"51 robots of 1000x1000 px .* at most 50 \(render "
+                       r"--first\); nothing written"):
+        R.contact_sheet(missing, tmp_path / "s.png", size=(1000, 1000))
+    assert not (tmp_path / "s.png").exists()
+
+
 def test_side_by_side(tmp_path: Path) -> None:
     out = R.side_by_side(_legged_spec(), _legged_spec(leg_geoms=False), tmp_path / "sbs.png",
                          size=(200, 150))
