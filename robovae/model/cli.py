@@ -85,6 +85,9 @@ def run_lightning_cli(argv: Sequence[str] | None = None) -> RoboVAECLI:
     """Run the Lightning CLI on ``argv`` (``["fit", "--config", ...]``; ``None``: sys.argv)."""
     warnings.filterwarnings("ignore", ".*does not have many workers.*")
     warnings.filterwarnings("ignore", ".*smaller than the logging interval.*")
+    if argv is not None:  # given on purpose (main([...]) in a notebook or a test), whatever
+        # the host program's own sys.argv holds
+        warnings.filterwarnings("ignore", "LightningCLI's args parameter is intended.*")
     try:
         return _cli(argv)
     except pickle.UnpicklingError as e:  # a checkpoint Lightning found itself (``last``)
