@@ -8,6 +8,7 @@ plus skipped files and duplicates) is saved beside it as JSON.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -129,7 +130,7 @@ class RobotDataset(InMemoryDataset):
                              log=False)
         except BaseException:  # a failed build leaves no empty cache folders behind
             for d in made:
-                if d.is_dir() and not any(d.iterdir()):
+                with contextlib.suppress(OSError):  # not empty (another build's): kept
                     d.rmdir()
             raise
         self.load(self.processed_paths[0], data_cls=RobotData)
