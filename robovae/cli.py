@@ -203,8 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--stance", action=argparse.BooleanOptionalAction, default=True,
                    help="a free-floating robot's hanging wheels are lowered onto the floor, its "
                    "soles laid flat, and a robot on two feet gets its stilts stood on their "
-                   "ends and a home keyframe with its centre of mass over them (ground_wheels, "
-                   "level_soles, level_stilts, balance_home)")
+                   "ends, ankle motors strong enough for its soles and a home keyframe with its "
+                   "centre of mass over them (ground_wheels, level_soles, level_stilts, "
+                   "strong_ankles, balance_home)")
     g.add_argument("--quality", action=argparse.BooleanOptionalAction, default=True,
                    help="measure every valid robot: attached, symmetric, standing (the "
                    "standing test continues the validation's held second)")

@@ -1,10 +1,11 @@
 """Stance: a free-floating robot written with its wheels on the floor, its soles flat on it
-and, when it stands on two feet, its stilts upright and its centre of mass over them at rest.
+and, when it stands on two feet, its stilts upright, its ankles strong enough for its soles and
+its centre of mass over them at rest.
 
-Four named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
+Five named rules that the writer runs on the compiled robot at ``qpos0``, before its floor
 placement (:func:`robovae.generate.writer.graph_to_spec` with ``stance=True``; ``robovae
 generate`` asks for them, ``--no-stance`` does not). Each is reported per robot when it changes
-something. All four look at the robot's geometry at rest only, never at a simulation.
+something. All five look at the robot's geometry at rest only, never at a simulation.
 
 **Support.** Each geom of the robot has candidate lowest points at rest: a box's corners, the
 bottoms of a capsule's end spheres, a sphere's bottom, else the corners of the geom's bounding
@@ -64,6 +65,15 @@ floor once it has settled a little.
     (s_hi - s_lo) / 2``) and a ``θ`` that centres it exists; the keyframe's lowest point is
     kept at ``qpos0``'s. A robot that already has a ``home`` keyframe is left alone.
 
+``strong_ankles``
+    On the same two legs and ankles, an ankle motor weaker than ``(m g / 2) · h`` (half the
+    robot's weight ``m g`` at ``h``, half the sagittal extent of its leg's support points: the
+    torque that puts the centre of pressure on the sole's edge, the most a foot can use) gets
+    that strength, its gear scaled up (a DC motor keeps its no-load speed). A decoded biped's
+    ankle can be far weaker than its other joints, and held by its own motors the robot then
+    falls on its face. The procedural bipeds' ankles all pass (1.7 to 3.3 times the bound, 5th
+    percentile to median); an ankle without a motor is left.
+
 The quality measures and ``robovae/Walk-v0`` start a robot at its ``home`` keyframe
 (:func:`robovae.evaluate.quality.stage.rest_pose`).
 """
@@ -71,15 +81,17 @@ The quality measures and ``robovae/Walk-v0`` start a robot at its ``home`` keyfr
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
-from robovae.generate.mjcf_numbers import mjcf_round_vector
+from robovae.data.actuators import joint_strength, speed_limited
+from robovae.generate.mjcf_numbers import mjcf_round, mjcf_round_vector
 
 __all__ = ["BALANCED", "BIPED_TOL", "MAX_ANKLE", "MAX_SOLE_TILT", "MAX_WHEEL_DROP", "SOLE_TOL",
            "SUPPORT_TOL", "WHEEL_TOL", "Points", "at_qpos0", "balance_home", "candidate_points",
-           "ground_wheels", "level_soles", "level_stilts", "support_points"]
+           "ground_wheels", "level_soles", "level_stilts", "strong_ankles", "support_points"]
 
 #: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
@@ -341,6 +353,76 @@ def _ankle(model: mujoco.MjModel, data: mujoco.MjData, foot: int, root: int,
     return None
 
 
+class _TwoLegs(NamedTuple):
+    points: np.ndarray  # support points [P, 3]
+    leg_of: np.ndarray  # [P]: the root's child (leg) each point belongs to
+    legs: list[int]
+    lateral: np.ndarray  # unit, horizontal, from the first foot to the second
+    sagittal: np.ndarray  # unit, horizontal, normal to lateral
+    ankles: list[int]  # per leg, its ankle hinge (:func:`_ankle`)
+    feet: list[int]  # per leg, its deepest support body
+
+
+def _two_legs(model: mujoco.MjModel, data: mujoco.MjData, root: int,
+              points: Points | None) -> _TwoLegs | None:
+    """The two legs of ``balance_home`` and ``strong_ankles`` (module docstring), at ``data``'s
+    pose; None when the support points do not lie on exactly two limbs of ``root`` each with an
+    ankle."""
+    pts, owner, _ = support_points(model, data, points=points)
+    limbs = np.array([_limb(model, int(model.geom_bodyid[g]), root) for g in owner])
+    legs = sorted(set(limbs.tolist()))
+    if len(legs) != 2 or root in legs:
+        return None
+    centres = [pts[limbs == leg, :2].mean(0) for leg in legs]
+    lateral = np.array([*(centres[1] - centres[0]), 0.0])
+    if np.linalg.norm(lateral) < 1e-9:
+        return None
+    lateral /= np.linalg.norm(lateral)
+    ankles, feet = [], []
+    for leg in legs:
+        on_leg = [int(model.geom_bodyid[g]) for g in owner[limbs == leg]]
+        foot = max(on_leg, key=lambda b: (_depth(model, b), b))
+        j = _ankle(model, data, foot, root, lateral)
+        if j is None:
+            return None
+        ankles.append(j)
+        feet.append(foot)
+    return _TwoLegs(pts, limbs, legs, lateral, np.array([-lateral[1], lateral[0], 0.0]), ankles,
+                    feet)
+
+
+def strong_ankles(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
+                  data: mujoco.MjData | None = None, points: Points | None = None) -> bool:
+    """Give each ankle of a two-legged free-floating robot at least the strength that holds half
+    the robot's weight at its sole's edge (``strong_ankles``, module docstring): the gear of
+    its motor in ``spec`` is scaled up (a DC motor stays one). ``model``: ``spec`` compiled;
+    ``data``: its kinematics at ``qpos0`` (made here when not given); ``points``:
+    :func:`candidate_points` at that pose. Returns whether an ankle was made stronger."""
+    if model.body_jntnum[root] < 1 or model.jnt_type[model.body_jntadr[root]] != _FREE:
+        return False
+    data = at_qpos0(model, data)
+    two = _two_legs(model, data, root, points)
+    if two is None:
+        return False
+    strength = joint_strength(model)
+    weight = float(model.body_subtreemass[root]) * float(np.linalg.norm(model.opt.gravity))
+    fired = False
+    for leg, j in zip(two.legs, two.ankles):
+        s = two.points[two.leg_of == leg] @ two.sagittal
+        need = 0.5 * weight * 0.5 * float(s.max() - s.min())
+        if not 0.0 < strength[j] < need:  # no motor to strengthen, or strong enough
+            continue
+        name = model.joint(j).name
+        for act in spec.actuators:
+            if act.trntype == mujoco.mjtTrn.mjTRN_JOINT and act.target == name:
+                gear = mjcf_round(float(act.gear[0]) * need / strength[j])
+                act.gear = [gear] + [0.0] * 5
+                if act.biastype == mujoco.mjtBias.mjBIAS_AFFINE:  # a DC motor's speed line
+                    speed_limited(act, gear)
+                fired = True
+    return fired
+
+
 def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: float = 0.0,
                  data: mujoco.MjData | None = None, points: Points | None = None) -> bool:
     """Add the ``home`` keyframe of the ankle strategy to ``spec`` (``balance_home``, module
@@ -355,28 +437,15 @@ def balance_home(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int, lift: fl
     if model.jnt_type[free] != _FREE:
         return False
     data = at_qpos0(model, data)
-    pts, owner, _ = support_points(model, data, points=points)
-    limbs = np.array([_limb(model, int(model.geom_bodyid[g]), root) for g in owner])
-    legs = sorted(set(limbs.tolist()))
-    if len(legs) != 2 or root in legs:
+    two = _two_legs(model, data, root, points)
+    if two is None:
         return False
-    centres = [pts[limbs == leg, :2].mean(0) for leg in legs]
-    lateral = np.array([*(centres[1] - centres[0]), 0.0])
-    if np.linalg.norm(lateral) < 1e-9:
-        return False
-    lateral /= np.linalg.norm(lateral)
-    sagittal = np.array([-lateral[1], lateral[0], 0.0])
+    pts, lateral, sagittal = two.points, two.lateral, two.sagittal
     s = pts @ sagittal
     mid, half = 0.5 * (s.max() + s.min()), 0.5 * (s.max() - s.min())
-    ankles, feet = [], []
-    for leg in legs:
-        on_leg = [int(model.geom_bodyid[g]) for g in owner[limbs == leg]]
-        foot = max(on_leg, key=lambda b: (_depth(model, b), b))
-        j = _ankle(model, data, foot, root, lateral)
-        if j is None:
-            return False
-        ankles.append((int(model.jnt_qposadr[j]), float(np.sign(data.xaxis[j] @ lateral)), j))
-        feet.append(foot)
+    ankles = [(int(model.jnt_qposadr[j]), float(np.sign(data.xaxis[j] @ lateral)), j)
+              for j in two.ankles]
+    feet = two.feet
     lo, hi = -MAX_ANKLE, MAX_ANKLE
     for adr, sign, j in ankles:  # keep every ankle inside its range
         if model.jnt_limited[j]:

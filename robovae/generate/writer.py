@@ -58,6 +58,7 @@ from robovae.generate.stance import (
     ground_wheels,
     level_soles,
     level_stilts,
+    strong_ankles,
 )
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
@@ -101,7 +102,8 @@ class WriteResult:
 #: folder (``run.json``) and an optimisation log record it, so that neither is continued with
 #: robots written another way. Name each change that alters written files here.
 WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous joints (and "
-          "procedural wheels), hanging wheels grounded, biped stilts levelled")
+          "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
+          "strengthened")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
@@ -171,6 +173,8 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         dz = clearance - _lowest_point(model, kin)
         for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]
+    if stance and strong_ankles(spec, model, root, data=kin, points=pts):  # gears only
+        fired.append("strong_ankles")
     if stance and balance_home(spec, model, root, lift=dz, data=kin, points=pts):
         fired.append("balance_home")
     return spec, model, fired

@@ -13,7 +13,7 @@ import pytest
 import torch
 
 import robovae.envs  # noqa: F401  (registers robovae/Walk-v0)
-from robovae.data.features import LINK, get_feature_set
+from robovae.data.features import JOINT, LINK, get_feature_set
 from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.evaluate.quality.attachment import attachment
@@ -69,13 +69,19 @@ def _write(graph, folder, stance: bool):
     return write_robot(graph, folder, FS, stance=stance)
 
 
+def _rule_stands_it(graph, folder, rule: str):
+    """The robot written without and with the stance rules: only ``rule`` fires, and the robot
+    falls without it and stands with it. Returns both writes."""
+    off = _write(graph, folder / "off", stance=False)
+    on = _write(graph, folder / "on", stance=True)
+    assert on.rules == [rule] and off.rules == []
+    assert not standing(off.robot_path).stands
+    assert standing(on.robot_path).stands
+    return off, on
+
+
 def test_level_soles_lays_tilted_feet_flat_and_the_biped_stands(tmp_path):
-    g = _biped(tilt_deg=10.0)
-    before = _write(g, tmp_path / "off", stance=False)
-    after = _write(g, tmp_path / "on", stance=True)
-    assert after.rules == ["level_soles"] and before.rules == []
-    assert not standing(before.robot_path).stands
-    assert standing(after.robot_path).stands
+    before, after = _rule_stands_it(_biped(tilt_deg=10.0), tmp_path, "level_soles")
     model = mujoco.MjModel.from_xml_path(str(after.robot_path))
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
@@ -131,13 +137,70 @@ def test_stilts_of_a_robot_on_more_legs_keep_their_slant(seed, kind, tmp_path):
     assert on.robot_path.read_bytes() == off.robot_path.read_bytes()
 
 
+def _weak_ankles(graph, factor: float):
+    """The graph with its ankle motors (``*_foot_j0``) ``factor`` times as strong."""
+    model = procedural_spec(1, "biped").compile()
+    x, torque = graph.x.clone(), FS.slice("joint.torque").start
+    for i, (t, j) in enumerate(zip(graph.node_type.tolist(), graph.mj_id.tolist())):
+        if t == JOINT and model.joint(j).name.endswith("_foot_j0"):
+            x[i, torque] *= factor
+    out = graph.clone()
+    out.x = x
+    return out
+
+
+def test_strong_ankles_give_weak_ankles_their_soles_strength(tmp_path):
+    """Ankle motors decoded 50 times too weak: held by its own motors the biped falls on its
+    face. ``strong_ankles`` gives each ankle the torque of half the robot's weight at its
+    sole's edge (its other motors and its geometry unchanged), and it stands. The procedural
+    biped's own ankles are that strong already: the rule leaves it."""
+    g = _biped()
+    assert "strong_ankles" not in _write(g, tmp_path / "own", stance=True).rules
+    off, on = _rule_stands_it(_weak_ankles(g, 1 / 50), tmp_path, "strong_ankles")
+    m_off = mujoco.MjModel.from_xml_path(str(off.robot_path))
+    m_on = mujoco.MjModel.from_xml_path(str(on.robot_path))
+    data = at_qpos0(m_on)
+    pts, owner, _ = support_points(m_on, data)
+    weight = m_on.body_subtreemass[1] * 9.81
+    parents = set(m_on.body_parentid.tolist())
+    ankles = 0
+    for a in range(m_on.nu):
+        foot = int(m_on.jnt_bodyid[m_on.actuator_trnid[a, 0]])
+        if foot in parents:  # not an ankle (the feet are the leaves)
+            assert m_on.actuator_gear[a, 0] == m_off.actuator_gear[a, 0]
+            continue
+        ankles += 1
+        x = pts[m_on.geom_bodyid[owner] == foot, 0]  # the feet point along x
+        need = 0.5 * weight * 0.5 * np.ptp(x)
+        assert m_on.actuator_gear[a, 0] == pytest.approx(need, rel=1e-4)
+        assert m_on.actuator_gear[a, 0] > 10 * m_off.actuator_gear[a, 0]
+    assert ankles == 2 and m_on.geom_size.tolist() == m_off.geom_size.tolist()
+
+
+def test_strong_ankles_keep_a_dc_motor_one(tmp_path):
+    """An ankle driven by a DC motor (a continuous joint's: ``speed_limited``) keeps its
+    no-load speed when its gear is raised: the bias follows the new gear."""
+    from robovae.data.actuators import NO_LOAD_SPEED, speed_limited
+    from robovae.generate.stance import strong_ankles
+
+    path = _write(_weak_ankles(_biped(), 1 / 50), tmp_path / "off", stance=False).robot_path
+    spec = mujoco.MjSpec.from_file(str(path))
+    model = spec.compile()
+    leaves = set(range(model.nbody)) - set(model.body_parentid.tolist())
+    ankles = [a for a in spec.actuators if int(model.joint(a.target).bodyid[0]) in leaves]
+    for act in ankles:
+        speed_limited(act, float(act.gear[0]))
+    model = spec.compile()
+    assert strong_ankles(spec, model, 1)
+    for act in ankles:
+        assert act.biasprm[2] == pytest.approx(-1.0 / (act.gear[0] * NO_LOAD_SPEED))
+        assert act.gear[0] > 10.0 and list(act.forcerange) == [-1.0, 1.0]
+    assert not strong_ankles(spec, spec.compile(), 1)  # strong enough now
+
+
 def test_balance_home_leans_the_biped_over_its_feet(tmp_path):
     g = _biped(com_shift=-0.25)
-    before = _write(g, tmp_path / "off", stance=False)
-    after = _write(g, tmp_path / "on", stance=True)
-    assert after.rules == ["balance_home"]
-    assert not standing(before.robot_path).stands
-    assert standing(after.robot_path).stands
+    before, after = _rule_stands_it(g, tmp_path, "balance_home")
     model = mujoco.MjModel.from_xml_path(str(after.robot_path))
     home = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
     assert home >= 0 and model.nkey == 1
