@@ -25,7 +25,7 @@ load) and turned into a scene with ``mujoco.MjSpec`` edits, never XML strings:
 
 **Initial pose**: the robot's rest pose (:func:`robovae.evaluate.quality.stage.rest_pose`: its
 ``home`` keyframe when it has one, as a generated robot's balanced stance,
-:mod:`robovae.generate.stance`; else ``qpos0``; joints clipped into their ranges), at rest;
+:mod:`robovae.generate.bipeds`; else ``qpos0``; joints clipped into their ranges), at rest;
 ``reset`` adds noise to it.
 
 **Actions** lie in ``[-1, 1]^nu`` (``float32``) and are scaled to each actuator's control range

@@ -12,7 +12,7 @@ without any geom get a small marker and a "bone" to their parent (:func:`inject_
 when most bodies' visible geoms are gone (meshes dropped) the collision geom groups are shown as
 well (:func:`scene_option`). Models that have a floor are rendered as they are. A robot is shown
 in its rest pose: its keyframe named in :data:`~robovae.evaluate.quality.stage.REST_KEYFRAMES`
-(``home``: a generated robot's balanced stance, :mod:`robovae.generate.stance`) when it has one,
+(``home``: a generated robot's balanced stance, :mod:`robovae.generate.bipeds`) when it has one,
 else ``qpos0``, joints clipped into their ranges
 (:func:`~robovae.evaluate.quality.stage.rest_pose`: where the quality measures start it).
 """

@@ -232,8 +232,9 @@ def generate(
     default: the checkpoint's ``prior``); the prior actually used is recorded in ``run.json``.
     ``stance``: a free-floating robot's hanging wheels are lowered onto the floor, its soles
     laid flat, and a two-footed robot gets ankles strong enough for its soles and a balanced
-    ``home`` keyframe (:mod:`robovae.generate.stance`; rules ``ground_wheels``,
-    ``level_soles``, ``level_stilts``, ``strong_ankles``, ``balance_home``).
+    ``home`` keyframe (:mod:`robovae.generate.stance` and :mod:`robovae.generate.bipeds`;
+    rules ``ground_wheels``, ``level_soles``, ``level_stilts``, ``strong_ankles``,
+    ``balance_home``).
     """
     if prior is not None and prior not in PRIORS:
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")

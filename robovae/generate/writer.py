@@ -10,7 +10,8 @@ model is compiled, ``mj_forward`` run at ``qpos0``, and the lowest point over th
 ``z = clearance`` (m) by shifting the free bodies' ``pos[2]``. This changes the root link's
 ``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it. With ``stance`` the
 stance rules run first (:mod:`robovae.generate.stance`: hanging wheels lowered onto the floor,
-soles laid flat, a biped's stilts stood on their ends, then a ``home`` keyframe lifted with the
+soles laid flat, a biped's stilts stood on their ends; :mod:`robovae.generate.bipeds`: a
+biped's ankles made strong enough for its soles, then a ``home`` keyframe lifted with the
 robot).
 
 **Round trip** (MJCF → graph → :func:`write_robot` → graph), within the 6-digit MJCF
@@ -47,18 +48,17 @@ import numpy as np
 from robovae.data.features import FeatureSet
 from robovae.data.loading import capture_mujoco_warnings, robot_root
 from robovae.data.tree_arrays import RobotTree
+from robovae.generate.bipeds import balance_home, strong_ankles, two_legs
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
 from robovae.generate.stance import (
     at_qpos0,
-    balance_home,
     candidate_points,
     ground_wheels,
     level_soles,
     level_stilts,
-    strong_ankles,
 )
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
@@ -173,10 +173,12 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         dz = clearance - _lowest_point(model, kin)
         for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]
-    if stance and strong_ankles(spec, model, root, data=kin, points=pts):  # gears only
-        fired.append("strong_ankles")
-    if stance and balance_home(spec, model, root, lift=dz, data=kin, points=pts):
-        fired.append("balance_home")
+    legs = two_legs(model, kin, root, pts) if stance else None  # both rules' two legs
+    if legs is not None:
+        if strong_ankles(spec, model, root, data=kin, legs=legs):  # gears only
+            fired.append("strong_ankles")
+        if balance_home(spec, model, root, lift=dz, data=kin, legs=legs):
+            fired.append("balance_home")
     return spec, model, fired
 
 
@@ -205,9 +207,11 @@ def graph_to_spec(
             ``z = 0``; ``None`` keeps the root link's position.
         self_collision: let the robot's geoms collide with each other (``conaffinity = 1``).
         stance: a free-floating robot gets its hanging wheels lowered onto the floor, its soles
-            laid flat and, standing on two feet, its stilts stood on their ends and a balanced
-            ``home`` keyframe (:mod:`robovae.generate.stance`: ``ground_wheels``,
-            ``level_soles``, ``level_stilts``, ``balance_home``).
+            laid flat and, standing on two feet, its stilts stood on their ends, ankles strong
+            enough for its soles and a balanced ``home`` keyframe
+            (:mod:`robovae.generate.stance`: ``ground_wheels``, ``level_soles``,
+            ``level_stilts``; :mod:`robovae.generate.bipeds`: ``strong_ankles``,
+            ``balance_home``).
 
     Returns:
         The spec (already compiled once, so ``spec.to_xml()`` works) and the names of the rules

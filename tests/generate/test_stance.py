@@ -181,7 +181,7 @@ def test_strong_ankles_keep_a_dc_motor_one(tmp_path):
     """An ankle driven by a DC motor (a continuous joint's: ``speed_limited``) keeps its
     no-load speed when its gear is raised: the bias follows the new gear."""
     from robovae.data.actuators import NO_LOAD_SPEED, speed_limited
-    from robovae.generate.stance import strong_ankles
+    from robovae.generate.bipeds import strong_ankles
 
     path = _write(_weak_ankles(_biped(), 1 / 50), tmp_path / "off", stance=False).robot_path
     spec = mujoco.MjSpec.from_file(str(path))
