@@ -12,7 +12,10 @@ around each node's mean (ball of radius ``R`` in the node-latent space). ``R = 0
 robot's reconstruction ``n`` times. Draws come from a generator seeded by ``(seed, i)``, so a
 variation does not depend on ``n`` or on which variations were already written. The output
 folder has the layout of ``robovae generate`` (``robot_<i>/robot.xml``, ``manifest.jsonl`` with
-``latent``, ``like`` and ``radius`` per robot, ``summary.json``) and resumes the same way.
+``latent``, ``like`` and ``radius`` per robot, ``summary.json``) and resumes the same way. The
+report adds what the radius bought (:func:`like_metrics`): against the robot's reconstruction,
+the share of variations that keep its topology and limb count, the mean node-count change and
+the median mass factor, beside the prior's own scale :func:`prior_spread`.
 
 **Paths** (``robovae interpolate A.xml B.xml --steps K --out DIR``, :func:`interpolate_files`):
 :func:`robovae.generate.interpolate.interpolate` decodes ``K`` evenly spaced points of the line
@@ -53,6 +56,7 @@ from robovae.generate.pipeline import (
     claim,
     model_fingerprint,
     open_manifest,
+    prepare_records,
     read_manifest,
     summarize,
     worker_pool,
@@ -62,7 +66,8 @@ from robovae.generate.writer import WRITER
 from robovae.model.checkpoint import own_model
 from robovae.model.vae import RoboVAE
 
-__all__ = ["ball_offsets", "encode_file", "generate_like", "interpolate_files"]
+__all__ = ["ball_offsets", "encode_file", "generate_like", "interpolate_files", "like_metrics",
+           "prior_spread", "reconstruction_record"]
 
 
 def ball_offsets(rng: np.random.Generator, count: int, dim: int, radius: float) -> np.ndarray:
@@ -127,7 +132,50 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
         for k in range(0, len(todo), LIKE_BATCH):
             _like_batch(model, todo[k:k + LIKE_BATCH], mu, w, robot, radius, out, seed,
                         validate, jobs, scene, floating, pool)
-    return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
+    reference = reconstruction_record(model, mu, w, floating)
+    return summarize(model, out, n, len(todo), validate, time.perf_counter() - start,
+                     extra=lambda records: {"like": like_metrics(records, reference, radius,
+                                                                 prior_spread(model))})
+
+
+def prior_spread(model: RoboVAE) -> float:
+    """Root-mean-square distance of the sampling prior's draws from its mean,
+    ``sqrt(tr C)`` (the fitted mixture's covariance :meth:`~robovae.model.latent_mixture.
+    LatentMixture.moments`; ``sqrt(d)`` for ``N(0, I)``): the scale a ``--radius`` compares to."""
+    mix = model.sampling_mixture()
+    if mix is None:
+        return math.sqrt(int(model.hparams.latent_dim))
+    return math.sqrt(float(np.trace(mix.moments()[1])))
+
+
+@torch.no_grad()
+def reconstruction_record(model: RoboVAE, mu: torch.Tensor, w: torch.Tensor,
+                          floating: bool = True) -> dict:
+    """The manifest record (descriptors only: nothing is written) of the robot decoded from
+    ``mu`` and node latents ``w`` as a variation of radius 0 is."""
+    nodes = [w] if model.hparams.get("node_latent_dim") else None
+    graphs = model.decode(mu[None], node_latents=nodes, clamp=nodes is None)
+    records, _ = prepare_records(model, [0], mu[None], graphs, Path("."), validate=False,
+                                 floating=floating)
+    return records[0]
+
+
+def like_metrics(records: list[dict], reference: dict, radius: float, spread: float) -> dict:
+    """What a radius buys: over the variations' ``records``, the share that keep the
+    reference's (the reconstruction's) topology and limb count, the mean ``|Δ nodes|``, and
+    the median mass factor ``exp(median |ln(m / m_ref)|)``; with the reference's descriptors,
+    ``radius`` and the prior's ``spread`` (:func:`prior_spread`)."""
+    n = max(len(records), 1)
+    masses = [abs(math.log(r["mass"] / reference["mass"])) for r in records
+              if r["mass"] > 0 and reference["mass"] > 0]
+    return {
+        "radius": radius, "prior_spread": spread,
+        "reconstruction": {k: reference[k] for k in ("topology", "nodes", "limbs", "mass")},
+        "same_topology": sum(r["topology"] == reference["topology"] for r in records) / n,
+        "same_limbs": sum(r["limbs"] == reference["limbs"] for r in records) / n,
+        "nodes_changed": sum(abs(r["nodes"] - reference["nodes"]) for r in records) / n,
+        "mass_factor": math.exp(float(np.median(masses))) if masses else float("nan"),
+    }
 
 
 def _like_batch(model: RoboVAE, chunk: list[int], mu: torch.Tensor, w: torch.Tensor,

@@ -29,7 +29,7 @@ import shutil
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
@@ -165,7 +165,7 @@ class GenerationReport:
         """The report as printed by ``robovae generate``."""
         m = self.metrics
         lines = [f"{self.total} robots in {self.out} ({self.new} new, {self.seconds:.1f} s)"]
-        if m:
+        if "validity" in m:
             lines.append(f"validity {m['validity']:.1%}  uniqueness {m['uniqueness']:.1%}  "
                          f"novelty {m['novelty']:.1%}  distinct topologies "
                          f"{m['distinct_topologies']} (training: {m['training_topologies']})")
@@ -174,11 +174,22 @@ class GenerationReport:
             lines.append(f"of {q['robots']} valid: all bodies attached {q['all_attached']:.1%}  "
                          f"symmetric {q['symmetric']:.1%}  one limb {q['one_limb']:.1%}  "
                          f"standing {q['standing']:.1%} (of {q['floating']} floating)")
+        if "like" in m:
+            lines.append(_like_line(m["like"]))
         lines.append("reasons: " + ", ".join(f"{k} {v}" for k, v in sorted(self.reasons.items())))
         if self.rules:
             lines.append("rules fired: " + ", ".join(f"{k} {v}" for k, v in
                                                      sorted(self.rules.items())))
         return "\n".join(lines)
+
+
+def _like_line(like: dict) -> str:
+    """The report's line on variations of one robot (``robovae generate --like``)."""
+    return (f"variations at radius {like['radius']:g} (the prior's draws lie "
+            f"{like['prior_spread']:.2f} from its mean, root mean square): "
+            f"the reconstruction's topology kept by {like['same_topology']:.1%}, its limb count "
+            f"by {like['same_limbs']:.1%}, nodes changed by {like['nodes_changed']:.1f} on "
+            f"average, mass by a factor {like['mass_factor']:.2f} (median)")
 
 
 def prior_name(model: RoboVAE) -> str:
@@ -418,14 +429,19 @@ def append_records(manifest: TextIO, records: Sequence[dict]) -> None:
 
 
 def summarize(model: RoboVAE, out: Path, n: int, new: int, validate: bool,
-              seconds: float) -> GenerationReport:
-    """The report over robots ``0 … n-1`` of the manifests in ``out``; saved as JSON."""
+              seconds: float, extra: Callable[[list[dict]], dict] | None = None
+              ) -> GenerationReport:
+    """The report over robots ``0 … n-1`` of the manifests in ``out``; saved as JSON.
+    ``extra(records)``, when given, returns more metrics from the robots' records (a dict
+    merged into ``metrics``)."""
     everything = [r for i, r in sorted(read_manifest(out).items()) if i < n]
     reasons = Counter(r.get("reason", "unvalidated") for r in everything)
     rules = Counter(rule for r in everything for rule in r.get("rules", []))
     metrics = sample_metrics(everything, model.training_robots) if validate else {}
     if validate:
         metrics["quality"] = quality_summary([r["quality"] for r in everything if "quality" in r])
+    if extra is not None:
+        metrics.update(extra(everything))
     report = GenerationReport(out, len(everything), new, seconds,
                               dict(reasons), dict(rules), metrics)
     _atomic_json(out / SUMMARY, report.to_dict())

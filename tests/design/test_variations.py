@@ -86,6 +86,36 @@ def test_radius_zero_gives_the_reconstruction(trained_nodes, files, tmp_path):
         (out / "robot_000001" / "robot.xml").read_text().replace("000001", "")
 
 
+def test_radius_zero_keeps_everything_the_report_measures(trained_nodes, files, tmp_path,
+                                                          capsys):
+    """The report says what a radius bought against the robot's reconstruction: at radius 0
+    every variation is the reconstruction (topology, limbs, nodes and mass kept)."""
+    model, _, ckpt = trained_nodes
+    a, _, _ = files
+    out = tmp_path / "zero"
+    assert main(["generate", "--ckpt", str(ckpt), "--like", str(a), "--radius", "0", "-n", "3",
+                 "--out", str(out), "--jobs", "1", "--no-validate", "--no-scene"]) == 0
+    like = json.loads((out / "summary.json").read_text())["metrics"]["like"]
+    assert like["same_topology"] == like["same_limbs"] == 1.0
+    assert like["nodes_changed"] == 0.0 and like["mass_factor"] == pytest.approx(1.0)
+    assert like["prior_spread"] == pytest.approx(variations.prior_spread(model))
+    assert like["prior_spread"] > 0
+    line = [x for x in capsys.readouterr().out.splitlines() if x.startswith("variations")]
+    assert len(line) == 1 and "kept by 100.0%" in line[0]
+
+
+def test_like_metrics_compare_each_variation_with_the_reconstruction():
+    ref = {"topology": "t0", "nodes": 10, "limbs": 4, "mass": 2.0}
+    recs = [dict(ref), {"topology": "t1", "nodes": 14, "limbs": 6, "mass": 8.0},
+            {"topology": "t0", "nodes": 10, "limbs": 4, "mass": 1.0},
+            {"topology": "t2", "nodes": 8, "limbs": 4, "mass": 2.0}]
+    m = variations.like_metrics(recs, ref, 2.0, 3.0)
+    assert m["same_topology"] == 0.5 and m["same_limbs"] == 0.75
+    assert m["nodes_changed"] == 1.5  # (0 + 4 + 0 + 2) / 4
+    assert m["mass_factor"] == pytest.approx(2.0 ** 0.5)  # median of |ln| 0, 2 ln2, ln2, 0
+    assert m["reconstruction"] == ref and m["radius"] == 2.0 and m["prior_spread"] == 3.0
+
+
 @pytest.mark.parametrize("extra, message", [
     (["--radius", "-1"], "--radius must be a finite number >= 0"),
     (["-n", "0"], "-n must be >= 1"),
