@@ -85,6 +85,10 @@ def run_lightning_cli(argv: Sequence[str] | None = None) -> RoboVAECLI:
     """Run the Lightning CLI on ``argv`` (``["fit", "--config", ...]``; ``None``: sys.argv)."""
     warnings.filterwarnings("ignore", ".*does not have many workers.*")
     warnings.filterwarnings("ignore", ".*smaller than the logging interval.*")
+    # Lightning's own calls into newer libraries, nothing a user can change: torch's
+    # pytree (Lightning's ``_pytree.py``) and jsonargparse (Lightning's ``cli.py``)
+    warnings.filterwarnings("ignore", r"`isinstance\(treespec, LeafSpec\)` is deprecated")
+    warnings.filterwarnings("ignore", r"\s*skip_none parameter was deprecated")
     if argv is not None:  # given on purpose (main([...]) in a notebook or a test), whatever
         # the host program's own sys.argv holds
         warnings.filterwarnings("ignore", "LightningCLI's args parameter is intended.*")
