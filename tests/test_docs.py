@@ -42,6 +42,18 @@ def test_every_public_object_has_a_docstring() -> None:
     assert not missing, f"public objects without a docstring: {missing}"
 
 
+def test_every_module_is_on_an_api_page() -> None:
+    """Each module of robovae (not the packages' one-line ``__init__``) has its ``::: module``
+    on a page of docs/api, and every page names only modules that exist."""
+    listed = {line.removeprefix("::: ").strip() for page in (REPO / "docs" / "api").glob("*.md")
+              for line in page.read_text().splitlines() if line.startswith("::: ")}
+    modules = {info.name for info in pkgutil.walk_packages(robovae.__path__, "robovae.")
+               if not info.ispkg and not info.name.rsplit(".", 1)[1].startswith("_")}
+    assert not modules - listed, f"modules missing from docs/api: {sorted(modules - listed)}"
+    packages = {info.name for info in pkgutil.walk_packages(robovae.__path__, "robovae.")}
+    assert listed <= packages, f"docs/api names no such module: {sorted(listed - packages)}"
+
+
 def test_feature_tables_in_docs_are_the_registry() -> None:
     doc = (REPO / "docs" / "data.md").read_text()
     for name in FEATURE_SETS:
