@@ -61,8 +61,8 @@ import numpy as np
 from robovae.generate.mjcf_numbers import mjcf_round_vector
 
 __all__ = ["BIPED_TOL", "MAX_SOLE_TILT", "MAX_WHEEL_DROP", "SOLE_TOL", "SUPPORT_TOL",
-           "WHEEL_TOL", "Points", "at_qpos0", "candidate_points", "ground_wheels", "level_soles",
-           "level_stilts", "root_limb", "support_points"]
+           "WHEEL_TOL", "Points", "at_qpos0", "biped", "candidate_points", "ground_wheels",
+           "level_soles", "level_stilts", "root_limb", "support_points"]
 
 #: A sole's lowest corner lies within this share of the robot's size L of its lowest point.
 SOLE_TOL = 0.02
@@ -279,14 +279,22 @@ def level_stilts(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
     ``points``: :func:`candidate_points` at that pose). Returns whether a stilt was turned."""
     data = at_qpos0(model, data)
     points = candidate_points(model, data) if points is None else points
-    near = support_points(model, data, tol=BIPED_TOL, points=points)[1]
-    legs = {root_limb(model, int(model.geom_bodyid[g]), root) for g in near}
-    if len(legs) != 2 or root in legs:
+    if not biped(model, data, root, points):
         return False
     stilts = _floor_boxes(model, data, on_end=True, points=points)
     for g, up, _ in stilts:
         _lay_flat(spec, model, data, g, up)
     return bool(stilts)
+
+
+def biped(model: mujoco.MjModel, data: mujoco.MjData, root: int, points: Points,
+          tol: float = BIPED_TOL) -> bool:
+    """Whether the robot is a biped: its candidate lowest points (``points``, at ``data``'s
+    pose) within ``tol · L`` of the lowest lie on exactly two limbs of ``root`` (two legs,
+    and no third limb or the root body itself near the floor)."""
+    near = support_points(model, data, tol=tol, points=points)[1]
+    legs = {root_limb(model, int(model.geom_bodyid[g]), root) for g in near}
+    return len(legs) == 2 and root not in legs
 
 
 def root_limb(model: mujoco.MjModel, body: int, root: int) -> int:

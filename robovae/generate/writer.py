@@ -48,7 +48,7 @@ import numpy as np
 from robovae.data.features import FeatureSet
 from robovae.data.loading import capture_mujoco_warnings, robot_root
 from robovae.data.tree_arrays import RobotTree
-from robovae.generate.bipeds import balance_home, strong_ankles, two_legs
+from robovae.generate.bipeds import balance_home, foot_soles, strong_ankles, two_legs
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
 from robovae.generate.rules import apply_rules
@@ -103,7 +103,7 @@ class WriteResult:
 #: robots written another way. Name each change that alters written files here.
 WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous joints (and "
           "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
-          "strengthened")
+          "strengthened, soles under biped point feet")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
@@ -168,12 +168,17 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
             model = _compile(spec)
             kin = at_qpos0(model)
             pts = candidate_points(model, kin)
+    legs = two_legs(model, kin, root, pts) if stance else None  # the three rules' two legs
+    if legs is not None and foot_soles(spec, model, root, kin, pts, legs):
+        fired.append("foot_soles")
+        model = _compile(spec)
+        kin = at_qpos0(model)
+        legs = two_legs(model, kin, root, candidate_points(model, kin))
     dz = 0.0
     if placed:
         dz = clearance - _lowest_point(model, kin)
         for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]
-    legs = two_legs(model, kin, root, pts) if stance else None  # both rules' two legs
     if legs is not None:
         if strong_ankles(spec, model, root, data=kin, legs=legs):  # gears only
             fired.append("strong_ankles")
@@ -207,10 +212,10 @@ def graph_to_spec(
             ``z = 0``; ``None`` keeps the root link's position.
         self_collision: let the robot's geoms collide with each other (``conaffinity = 1``).
         stance: a free-floating robot gets its hanging wheels lowered onto the floor, its soles
-            laid flat and, standing on two feet, its stilts stood on their ends, ankles strong
-            enough for its soles and a balanced ``home`` keyframe
+            laid flat and, standing on two feet, its stilts stood on their ends, soles under
+            point feet, ankles strong enough for its soles and a balanced ``home`` keyframe
             (:mod:`robovae.generate.stance`: ``ground_wheels``, ``level_soles``,
-            ``level_stilts``; :mod:`robovae.generate.bipeds`: ``strong_ankles``,
+            ``level_stilts``; :mod:`robovae.generate.bipeds`: ``foot_soles``, ``strong_ankles``,
             ``balance_home``).
 
     Returns:

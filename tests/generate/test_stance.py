@@ -1,5 +1,6 @@
-"""The writer's stance rules (robovae.generate.stance): wheels grounded, soles laid flat, biped
-stilts stood on their ends, a balanced home pose."""
+"""The writer's stance rules (robovae.generate.stance, robovae.generate.bipeds): wheels
+grounded, soles laid flat, biped stilts stood on their ends, soles under point feet, strong
+ankles, a balanced home pose."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ from robovae.generate.stance import (
     support_points,
 )
 from robovae.generate.stance import _floor_boxes as floor_boxes
-from robovae.generate.writer import write_robot
+from robovae.generate.writer import graph_to_spec, write_robot
 
 FS = get_feature_set("kinematic")
 _I, _J = (0, 1, 2, 0, 0, 1), (0, 1, 2, 1, 2, 2)
@@ -196,6 +197,55 @@ def test_strong_ankles_keep_a_dc_motor_one(tmp_path):
         assert act.biasprm[2] == pytest.approx(-1.0 / (act.gear[0] * NO_LOAD_SPEED))
         assert act.gear[0] > 10.0 and list(act.forcerange) == [-1.0, 1.0]
     assert not strong_ankles(spec, spec.compile(), 1)  # strong enough now
+
+
+def _point_feet(graph, half: float = 0.01):
+    """The graph with the biped's feet boxes shrunk to cubes of ``half`` (m): legs on points."""
+    model = procedural_spec(1, "biped").compile()
+    x, box = graph.x.clone(), FS.slice("link.box_half")
+    for i, (t, b) in enumerate(zip(graph.node_type.tolist(), graph.mj_id.tolist())):
+        if t == LINK and model.body(b).name.endswith("_foot"):
+            x[i, box] = half
+    out = graph.clone()
+    out.x = x
+    return out
+
+
+def test_foot_soles_stand_a_biped_on_points(tmp_path):
+    """Feet decoded as 2 cm cubes and the centre of mass 10 cm behind them: the biped falls
+    backwards. ``foot_soles`` puts a flat box under each foot, level with the lowest point,
+    reaching past the centre of mass' projection, and it stands; masses unchanged."""
+    g = _point_feet(_biped(com_shift=-0.1))
+    off = _write(g, tmp_path / "off", stance=False)
+    on = _write(g, tmp_path / "on", stance=True)
+    assert on.rules == off.rules + ["foot_soles"]
+    assert not standing(off.robot_path).stands and standing(on.robot_path).stands
+    m_off = mujoco.MjModel.from_xml_path(str(off.robot_path))
+    m_on = mujoco.MjModel.from_xml_path(str(on.robot_path))
+    assert m_on.body_mass.tolist() == m_off.body_mass.tolist()
+    soles = [k for k in range(m_on.ngeom) if m_on.geom(k).name.endswith("_sole")]
+    assert m_on.ngeom == m_off.ngeom + 2 and len(soles) == 2
+    assert sorted(int(m_on.geom_bodyid[k]) for k in soles) == sorted(_leaves(m_on))
+    data = at_qpos0(m_on)
+    mujoco.mj_comPos(m_on, data)
+    com_x = data.subtree_com[1, 0]
+    lowest = robot_points(m_on, data, 1)[:, 2].min()
+    for k in soles:
+        assert m_on.geom_type[k] == mujoco.mjtGeom.mjGEOM_BOX
+        assert m_on.geom_contype[k] == 1 and m_on.geom_conaffinity[k] == 0
+        corners = data.geom_xpos[k] + np.abs(data.geom_xmat[k].reshape(3, 3)) @ m_on.geom_size[k]
+        assert corners[2] - 2 * m_on.geom_size[k, 2] == pytest.approx(lowest, abs=1e-4)
+        low_x = data.geom_xpos[k, 0] - m_on.geom_size[k, 0]
+        assert low_x < com_x < data.geom_xpos[k, 0] + m_on.geom_size[k, 0]  # under the feet
+
+
+@pytest.mark.parametrize("kind", ["biped", "humanoid"])
+def test_procedural_feet_get_no_soles(kind):
+    """The procedural bipeds and humanoids stand on their own feet: ``foot_soles`` leaves all
+    of them (some have short soles, their centre of mass over them)."""
+    for seed in range(40):
+        g = model_to_graph(procedural_spec(seed, kind).compile(), FS, name=kind)
+        assert "foot_soles" not in graph_to_spec(g, FS, stance=True, clearance=0.0)[1], seed
 
 
 def test_balance_home_leans_the_biped_over_its_feet(tmp_path):
