@@ -28,7 +28,8 @@ lies within 45° of the *lateral* axis (from one foot's support points to the ot
     foot's support points (at least ``SOLE_WIDTH · h``), ``SOLE_THICKNESS · h`` thick, with the
     contact settings, friction and colour of the foot's lowest geom. Inertials are explicit,
     so the masses do not change. The procedural bipeds and humanoids stand on soles and do not
-    fire it.
+    fire it (written from the ``kinematic`` or ``full`` features; ``paper34`` has no foot
+    geometry, and every procedural biped written from it fires it).
 
 ``balance_home``
     A robot on two legs gets a ``home`` keyframe in which its centre of mass lies over the
