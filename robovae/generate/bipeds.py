@@ -176,8 +176,7 @@ def foot_soles(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
         return False
     data = at_qpos0(model, data)
     two = legs or two_legs(model, data, root, points)
-    if two is None or not biped(model, data, root, candidate_points(model, data)
-                                if points is None else points, SOLE_BIPED_TOL):
+    if two is None:
         return False
     mujoco.mj_comPos(model, data)
     pts, sag, lat = two.points, two.sagittal, two.lateral
@@ -185,6 +184,9 @@ def foot_soles(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
     h = float(data.subtree_com[root][2]) - low
     s, s_com = pts @ sag, float(data.subtree_com[root] @ sag)
     if h <= 0 or float(s.max() - s.min()) >= MIN_SOLE * h or s.min() <= s_com <= s.max():
+        return False
+    points = candidate_points(model, data) if points is None else points
+    if not biped(model, data, root, points, SOLE_BIPED_TOL):  # last: the dearest test
         return False
     a, t = SOLE_MARGIN * h, SOLE_THICKNESS * h
     frame = np.stack([sag, lat, [0.0, 0.0, 1.0]], axis=1)  # sole axes in the world
