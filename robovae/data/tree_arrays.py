@@ -20,7 +20,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-__all__ = ["RobotTree", "TreeArrays", "children", "feature_values"]
+__all__ = ["RobotTree", "TreeArrays", "children", "feature_values", "shared_nodes"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,12 +87,46 @@ def feature_values(graph: RobotTree) -> np.ndarray:
     return _numpy(graph.x).astype(np.float64)
 
 
+def _as_list(a: Sequence[int] | Any) -> list[int]:
+    """A list of a list, a NumPy array or a tensor."""
+    return a.tolist() if hasattr(a, "tolist") else list(a)
+
+
 def children(parent: Sequence[int] | Any) -> list[list[int]]:
     """Children lists in canonical order for a pre-order parent vector (a list, a NumPy array
     or a tensor)."""
-    par = parent.tolist() if hasattr(parent, "tolist") else list(parent)
+    par = _as_list(parent)
     out: list[list[int]] = [[] for _ in par]
     for i, p in enumerate(par):
         if p >= 0:
             out[p].append(i)
     return out
+
+
+def _paths(parent: Sequence[int], node_type: Sequence[int]) -> list[tuple[tuple[int, int], ...]]:
+    """Each node's path from the root: ``((0, t_root), (r_1, t_1), …, (r, t))``, the child rank
+    ``r`` (0 for the first child of its parent, in pre-order) and the type of every node on it."""
+    out: list[tuple[tuple[int, int], ...]] = []
+    ranks: dict[int, int] = {}
+    for i, p in enumerate(parent):
+        step = (0, int(node_type[i]))
+        if p >= 0:
+            step = (ranks.get(p, 0), int(node_type[i]))
+            ranks[p] = step[0] + 1
+        out.append(out[p] + (step,) if p >= 0 else (step,))
+    return out
+
+
+def shared_nodes(source: tuple[Sequence[int], Sequence[int]],
+                 target: tuple[Sequence[int], Sequence[int]]) -> np.ndarray:
+    """For each node of the ``target`` tree, the node of the ``source`` tree it shares, or -1.
+
+    Both trees are given as ``(parent, node_type)`` in pre-order (root ``-1``; lists, arrays
+    or tensors). A target node shares the source node reached from the root by the same child
+    ranks through nodes of the same types: the two trees agree on everything above it. Equal
+    trees share every node (``[0, 1, …]``); a limb added to the target shares nothing of its
+    own, the nodes after it in pre-order still share theirs.
+    """
+    index = {path: i for i, path in enumerate(_paths(*map(_as_list, source)))}
+    return np.array([index.get(path, -1) for path in _paths(*map(_as_list, target))],
+                    dtype=np.int64)

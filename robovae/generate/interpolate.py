@@ -2,15 +2,17 @@
 
 For robots ``a`` and ``b`` with encoded means ``mu_a``, ``mu_b`` (the encoder's ``q(z | G)``
 means), step ``k`` of ``n`` decodes ``z_k = (1 - t_k) mu_a + t_k mu_b`` with ``t_k = k / (n - 1)``
-greedily. With node latents, the nodes' latent means are interpolated the same way, node by
-node in pre-order, the shorter robot's list padded with the other's tail:
-``w_k[i] = (1 - t_k) w_a[i] + t_k w_b[i]``; so the two ends are exactly the robots'
-reconstructions. Every step then gets the decoded fixes of ``robovae generate``
+greedily: its tree from ``z_k``, then each node's latent carried from the nodes it shares with
+the two robots (:mod:`robovae.model.node_transfer`), weighted ``1 - t_k`` and ``t_k``: a node
+both trees have blends ``(1 - t_k) w^a + t_k w^b``, a node of one robot's tree keeps that
+robot's latent, a node of neither takes its conditional prior mean. So the two ends are the
+robots' reconstructions (exactly where a robot's reconstructed tree is its own). Every step
+then gets the decoded fixes of ``robovae generate``
 (:func:`~robovae.generate.fixes.decoded_fixes`: rails with ends, a floating base; limbs are not
-mirrored, so that the ends stay the reconstructions) and
-the writer's stance rules (:mod:`robovae.generate.stance`), writes ``step_<k>/robot.xml`` and
-validates it in MuJoCo (:func:`~robovae.generate.validate.validate_robot`): the paper's §6.2
-question of whether the space between two designs holds usable robots.
+mirrored, so that the ends stay the reconstructions) and the writer's stance rules
+(:mod:`robovae.generate.stance`), writes ``step_<k>/robot.xml`` and validates it in MuJoCo
+(:func:`~robovae.generate.validate.validate_robot`): the paper's §6.2 question of whether the
+space between two designs holds usable robots.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from robovae.data.graph import RobotData
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.validate import Validation, validate_robot
 from robovae.generate.writer import write_robot
+from robovae.model.node_transfer import EncodedRobot, decode_near
 from robovae.model.vae import RoboVAE
 
 
@@ -41,9 +44,9 @@ class Step:
 
 @torch.no_grad()
 def latent_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11
-                ) -> tuple[np.ndarray, torch.Tensor, list[torch.Tensor]]:
-    """``(t, z, w)``: ``steps`` evenly spaced ``t`` in [0, 1], ``z_t = (1 - t) mu_a + t mu_b``
-    and each step's node latents (module docstring).
+                ) -> tuple[np.ndarray, torch.Tensor, tuple[EncodedRobot, EncodedRobot]]:
+    """``(t, z, ends)``: ``steps`` evenly spaced ``t`` in [0, 1], ``z_t = (1 - t) mu_a + t
+    mu_b`` ``[steps, latent_dim]`` and the two robots encoded (module docstring).
 
     Raises:
         ValueError: ``steps < 2``.
@@ -54,9 +57,8 @@ def latent_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11
     t = np.linspace(0.0, 1.0, steps)
     tt = torch.as_tensor(t, dtype=mu.dtype, device=mu.device)[:, None]
     z = (1 - tt) * mu[0] + tt * mu[1]
-    na, nb = wa.shape[0], wb.shape[0]
-    wa, wb = torch.cat([wa, wb[na:]]), torch.cat([wb, wa[nb:]])  # both max(na, nb) long
-    return t, z, [(1 - tk) * wa + tk * wb for tk in tt[:, :, None]]
+    return t, z, (EncodedRobot(mu[0], wa, (a.parent, a.node_type)),
+                  EncodedRobot(mu[1], wb, (b.parent, b.node_type)))
 
 
 #: Steps decoded at once (the decoder's memory grows with the batch).
@@ -73,9 +75,11 @@ def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
     """Decode the latent path from ``a`` to ``b`` (:data:`DECODE_BATCH` steps at a time);
     with ``out``, write each step's MJCF under ``out/step_<k>/`` (:func:`step_name`) and
     (``validate``) simulate it (see the module docstring)."""
-    t, z, w = latent_path(model, a, b, steps)
-    graphs = [g for i in range(0, steps, DECODE_BATCH) for g in model.decode(
-        z[i:i + DECODE_BATCH], node_latents=w[i:i + DECODE_BATCH], clamp=False)]
+    t, z, ends = latent_path(model, a, b, steps)
+    tt = torch.as_tensor(t, dtype=z.dtype)[:, None]
+    weights = torch.cat([1 - tt, tt], 1)
+    graphs = [g for i in range(0, steps, DECODE_BATCH) for g in decode_near(
+        model, z[i:i + DECODE_BATCH], ends, weights[i:i + DECODE_BATCH])]
     result = []
     for k, (tk, g) in enumerate(zip(t.tolist(), graphs)):
         g, _ = decoded_fixes(g, model.feature_set, mirror=False)

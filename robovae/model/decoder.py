@@ -292,9 +292,11 @@ class TreeDecoder(nn.Module):
 
         The tree and the types depend on ``z_T`` only. The ``t``-th node created for latent ``b``
         (pre-order) takes ``node_latents[b][t]`` when given (reconstruction: the encoder's node
-        means), else a draw from its conditional prior, ``mu^p + sigma^p * node_noise[b, t]``
-        (``node_noise`` is ``[B, >= max_nodes, node_latent_dim]``, already scaled by the sampling
-        temperature), or the prior mean ``mu^p`` without ``node_noise``.
+        means) and not NaN, else a draw from its conditional prior,
+        ``mu^p + sigma^p * node_noise[b, t]`` (``node_noise`` is ``[B, >= max_nodes,
+        node_latent_dim]``, already scaled by the sampling temperature), or the prior mean
+        ``mu^p`` without ``node_noise``. (A row of NaN lets a caller give the latents of some
+        nodes only, e.g. the nodes a variation shares with the robot it varies.)
 
         Returns:
             per latent ``(parent, node_type, x)``: pre-order parent vector (root -1), types and
@@ -362,7 +364,7 @@ class TreeDecoder(nn.Module):
 class _LatentHeads:
     """The per-robot parts of greedy decoding: ``z``'s projections for every head, and where
     each new node's latent ``w`` comes from (the given latents of the robot while they last,
-    pre-order index ``t``, else the conditional prior)."""
+    pre-order index ``t``, unless a row is NaN; else the conditional prior)."""
 
     def __init__(self, dec: TreeDecoder, z: Tensor, given: Sequence[Tensor] | None,
                  noise: Tensor | None, max_nodes: int) -> None:
@@ -386,8 +388,11 @@ class _LatentHeads:
         lens = [int(g.shape[0]) for g in given] or [0] * b
         self.lens = torch.tensor(lens, dtype=torch.long, device=z.device)
         self.table = z.new_zeros(b, max(lens, default=0), self.dim)
+        self.known = torch.zeros(b, max(lens, default=0), dtype=torch.bool, device=z.device)
         for k, g in enumerate(given):
             self.table[k, :g.shape[0]] = g.to(z)
+            self.known[k, :g.shape[0]] = ~torch.isnan(g).any(-1).to(z.device)
+        self.table = torch.nan_to_num(self.table)
 
     def new_nodes(self, rows: Tensor, t: Tensor, h: Tensor,
                   depth: Tensor) -> tuple[Tensor, Tensor]:
@@ -396,7 +401,9 @@ class _LatentHeads:
         features (zero outside the type's columns)."""
         dec = self.dec
         types = dec.type_logits(self.zc[rows], h, depth).argmax(-1)
-        have = t < self.lens[rows]
+        tt = t.clamp_max(max(self.table.shape[1] - 1, 0))
+        have = (t < self.lens[rows]) & (self.known[rows, tt] if self.known.numel()
+                                        else torch.zeros_like(t, dtype=torch.bool))
         if bool(have.all()):  # reconstruction: every node's latent is given, no prior needed
             w = self.table[rows, t]
         else:
@@ -405,7 +412,6 @@ class _LatentHeads:
             if self.noise is not None:
                 w = mu + torch.exp(0.5 * logvar) * self.noise[rows, t]
             if bool(have.any()):
-                tt = t.clamp_max(max(self.table.shape[1] - 1, 0))
                 w = torch.where(have[:, None], self.table[rows, tt], w)
         feat = dec.features(self.zl[rows], h, w, types)
         return types, torch.where(dec.type_mask[types], feat, torch.zeros_like(feat))

@@ -8,35 +8,45 @@ import torch
 from torch_geometric.data import Batch
 
 from robovae.generate import interpolate as interpolate_module
+from robovae.generate.fixes import decoded_fixes
 from robovae.generate.interpolate import interpolate, latent_path, step_name
 from robovae.model.checkpoint import own_model
+from robovae.model.node_transfer import carried_latents
 
 
 def test_path_starts_and_ends_at_the_encoded_means(trained):
     model, dm, _ = trained
     a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
-    t, z, w = latent_path(model, a, b, steps=5)
+    t, z, ends = latent_path(model, a, b, steps=5)
     mu, _ = model.encode(a)
-    assert t.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0] and len(w) == 5
+    assert t.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0] and len(z) == 5
+    assert torch.equal(ends[0].mu, z[0]) and torch.equal(ends[1].tree[0], b.parent)
     assert torch.allclose(z[0], mu[0]) and not torch.allclose(z[0], z[-1])
     assert torch.allclose(z[2], (z[0] + z[-1]) / 2, atol=1e-6)
     with pytest.raises(ValueError, match="at least 2 steps"):
         latent_path(model, a, b, steps=1)
 
 
-def test_node_latents_are_interpolated_node_by_node(trained_nodes):
-    """Node i's latent goes from a's to b's; the shorter robot is padded with the other's
-    tail, so both ends hold the robots' own node latents."""
+def test_node_latents_are_carried_from_the_nodes_each_robot_shares(trained_nodes):
+    """Each step's node takes the two robots' latents of the nodes it shares with them,
+    weighted 1 - t and t (not the latents at its pre-order index); the ends are the robots'
+    reconstructions where their trees come back."""
     model, dm, _ = trained_nodes
+    model = own_model(model).to(torch.float64)
     a, b = dm.dataset.by_name("gym_ant"), dm.dataset.by_name("dmc_humanoid")
-    _, (wa, wb) = model.encode_nodes(Batch.from_data_list([a, b]))
-    assert wa.shape[0] < wb.shape[0]
-    _, _, w = latent_path(model, a, b, steps=3)
-    assert len(w) == 3 and all(s.shape == wb.shape for s in w)
-    assert torch.equal(w[0][:wa.shape[0]], wa) and torch.equal(w[0][wa.shape[0]:],
-                                                                wb[wa.shape[0]:])
-    assert torch.allclose(w[-1], wb)
-    assert torch.allclose(w[1][:wa.shape[0]], (wa + wb[:wa.shape[0]]) / 2)
+    t, z, ends = latent_path(model, a, b, steps=3)
+    steps = interpolate(model, a, b, steps=3)
+    for k in range(3):
+        tree = model.decode(z[k:k + 1], clamp=False)[0]
+        w = carried_latents((tree.parent, tree.node_type), ends, [1 - t[k], t[k]])
+        want = model.decode(z[k:k + 1], node_latents=[w], clamp=False)[0]
+        want, _ = decoded_fixes(want, model.feature_set, mirror=False)
+        assert torch.equal(steps[k].graph.parent, want.parent)
+        assert torch.equal(steps[k].graph.x, want.x)
+    _, (wa, _) = model.encode_nodes(Batch.from_data_list([a, b]))
+    first = model.decode(z[:1], clamp=False)[0]
+    if torch.equal(first.parent, a.parent) and torch.equal(first.node_type, a.node_type):
+        assert torch.equal(carried_latents((a.parent, a.node_type), ends, [1.0, 0.0]), wa)
 
 
 @pytest.mark.parametrize("fixture", ["trained", "trained_nodes"])
