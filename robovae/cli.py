@@ -63,7 +63,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
         report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
                                seed=args.seed, validate=args.validate, jobs=args.jobs,
                                scene=args.scene, overwrite=args.overwrite,
-                               floating=args.floating_base)
+                               floating=args.floating_base, redraws=args.redraws)
         print(report.format())
         print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
         return 0
@@ -223,8 +223,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "(docs/generation.md)")
     g.add_argument("--like", help="a robot file: sample variations of it (around its encoded "
                    "latent, within --radius) instead of prior samples")
-    g.add_argument("--radius", type=float, default=0.5,
-                   help="with --like: latent radius of the variations (0: reconstructions)")
+    g.add_argument("--radius", type=float, default=1.0,
+                   help="with --like: radius of the variations in the prior's standard "
+                        "deviations, in its principal subspace (0: reconstructions; the "
+                        "prior's own draws lie about 3 from its mean)")
     g.set_defaults(func=cmd_generate)
     i = sub.add_parser("interpolate", help="robots on the latent line between two robots, "
                        "validated, with a contact sheet")

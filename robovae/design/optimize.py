@@ -104,8 +104,8 @@ from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
 
-__all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "optimize", "principal_basis",
-           "procedural_seed", "score_seeds"]
+__all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "optimize", "procedural_seed",
+           "score_seeds"]
 
 LOG = "log.json"
 #: Redraws of a prior sample whose decoding did not finish its tree (as ``robovae generate``).
@@ -128,16 +128,6 @@ WRITER = "floating base (walk, stand), mirrored limbs, stance rules, " + WRITTEN
 def procedural_seed(seed: int, index: int) -> int:
     """Seed of procedural baseline robot ``index`` of a run with ``seed``."""
     return int(np.random.SeedSequence([seed, index, 2]).generate_state(1)[0])
-
-
-def principal_basis(cov: np.ndarray, variance: float) -> np.ndarray:
-    """``U_k diag(lambda_k)^{1/2}`` ``[d, k]``: the fewest leading eigenvectors of ``cov``,
-    scaled by their standard deviations, that hold the share ``variance`` of its trace."""
-    lam, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    lam, vecs = np.clip(lam[::-1], 0.0, None), vecs[:, ::-1]
-    share = np.cumsum(lam) / lam.sum()
-    k = min(int(np.searchsorted(share, variance - 1e-9)) + 1, len(lam))
-    return vecs[:, :k] * np.sqrt(lam[:k])
 
 
 def score_seeds(sets: int) -> list[int]:
@@ -170,9 +160,7 @@ class _Run:
         self.seeds = score_seeds(score_sets)
         self.dim = int(model.hparams.latent_dim)
         self.floating = task != "reach"
-        mix = model.sampling_mixture()
-        mean, cov = mix.moments() if mix is not None else (np.zeros(self.dim), np.eye(self.dim))
-        self.origin, self.basis = mean, principal_basis(cov, variance)
+        self.origin, self.basis = model.prior_directions(variance)
         k = self.basis.shape[1]
         self.cma = CMA(mean=np.zeros(k), sigma=1.0, seed=seed, population_size=population)
         self.restarts, self._best, self._stall = 0, -math.inf, 0

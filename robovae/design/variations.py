@@ -1,21 +1,33 @@
 """Variations of a robot and paths between two robots, from the latent space.
 
 **Variations** (``robovae generate --like ROBOT.xml --radius R -n N``, :func:`generate_like`):
-the robot file is encoded to its latent mean ``mu`` (and, for a model with node latents, its
-nodes' latent means ``w_1 … w_m`` in pre-order). Variation ``i`` decodes
+the robot file is encoded to its latent mean ``mu`` and its nodes' latent means ``w_1 … w_m``
+(pre-order). Variation ``i`` decodes
 
-    z_i = mu + R · r_i · u_i,    u_i uniform on the unit sphere,  r_i = U_i^(1/d)
+    z_i = mu + R · B y_i,    y_i uniform in the unit ball of R^k,
 
-a point drawn uniformly from the ball of radius ``R`` around ``mu`` in the ``d``-dimensional
-latent space, and with node latents ``w_{i,t} = w_t + R · r_{i,t} · u_{i,t}`` drawn the same way
-around each node's mean (ball of radius ``R`` in the node-latent space). ``R = 0`` gives the
-robot's reconstruction ``n`` times. Draws come from a generator seeded by ``(seed, i)``, so a
-variation does not depend on ``n`` or on which variations were already written. The output
-folder has the layout of ``robovae generate`` (``robot_<i>/robot.xml``, ``manifest.jsonl`` with
-``latent``, ``like`` and ``radius`` per robot, ``summary.json``) and resumes the same way. The
-report adds what the radius bought (:func:`like_metrics`): against the robot's reconstruction,
-the share of variations that keep its topology and limb count, the mean node-count change and
-the median mass factor, beside the prior's own scale :func:`prior_spread`.
+``B = U_k diag(lambda_k)^{1/2}`` the basis of the sampling prior's principal subspace that
+holds the share ``variance`` (0.95) of its variance (:meth:`~robovae.model.sampling.
+PriorSampling.prior_directions`, the space ``robovae optimize`` searches). So ``R`` is a
+distance in the prior's standard deviations, along the directions the prior varies in: the
+prior's own draws lie ``sqrt(k)`` from its mean in these units, root mean square
+(:func:`prior_spread`), and the nearly collapsed latent directions, which the decoder hardly
+reads, take none of the radius. The tree and its node types come from ``z`` alone
+(:mod:`robovae.model.decoder`); every node the variation shares with the robot (reached from
+the root by the same child ranks through nodes of the same types,
+:func:`~robovae.data.tree_arrays.shared_nodes`) keeps the robot's node latent, the other nodes
+take their conditional prior mean, as sampled robots do at node temperature 0
+(:mod:`robovae.model.node_transfer`). ``R = 0`` gives the robot's reconstruction ``n`` times.
+``y_i`` comes from a generator seeded by ``(seed, i)``, so a variation does not depend on
+``n`` or on which variations were already written; a variation whose decoding does not finish
+its tree (the decoder's node or depth limit: a chain cut off) draws ``y_i`` again from
+``(seed, i, 2, k)``, up to ``redraws`` times, as ``robovae generate`` redraws a prior sample
+(``draw`` in its record). The output folder has the layout of
+``robovae generate`` (``robot_<i>/robot.xml``, ``manifest.jsonl`` with ``latent``, ``like``
+and ``radius`` per robot, ``summary.json``) and resumes the same way. The report adds what the
+radius bought (:func:`like_metrics`): against the robot's reconstruction, the share of
+variations that keep its topology and limb count, the mean node-count change and the median
+mass factor, beside the prior's own scale :func:`prior_spread`.
 
 **Paths** (``robovae interpolate A.xml B.xml --steps K --out DIR``, :func:`interpolate_files`):
 :func:`robovae.generate.interpolate.interpolate` decodes ``K`` evenly spaced points of the line
@@ -39,6 +51,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Sequence
 from concurrent.futures import Executor
 from contextlib import nullcontext
 from pathlib import Path
@@ -64,10 +77,17 @@ from robovae.generate.pipeline import (
 )
 from robovae.generate.writer import WRITER
 from robovae.model.checkpoint import own_model
+from robovae.model.node_transfer import EncodedRobot, decode_near
+from robovae.model.prior import latent_rng, unfinished
 from robovae.model.vae import RoboVAE
 
-__all__ = ["ball_offsets", "encode_file", "generate_like", "interpolate_files", "like_metrics",
-           "prior_spread", "reconstruction_record"]
+__all__ = ["ball_offsets", "draw_variations", "encode_file", "generate_like",
+           "interpolate_files", "like_metrics", "prior_spread", "reconstruction_record",
+           "variation_latents"]
+
+#: Share of the sampling prior's variance that the variations' subspace holds (as the default
+#: ``--variance`` of ``robovae optimize``).
+LIKE_VARIANCE = 0.95
 
 
 def ball_offsets(rng: np.random.Generator, count: int, dim: int, radius: float) -> np.ndarray:
@@ -81,16 +101,16 @@ def ball_offsets(rng: np.random.Generator, count: int, dim: int, radius: float) 
 
 
 @torch.no_grad()
-def encode_file(model: RoboVAE, path: str | os.PathLike) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(mu, w)``: the robot file's latent mean ``[latent_dim]`` and its nodes' latent means
-    ``[n_nodes, node_latent_dim]`` (0 columns without node latents).
+def encode_file(model: RoboVAE, path: str | os.PathLike) -> EncodedRobot:
+    """The robot file encoded by ``model`` (:class:`~robovae.model.node_transfer.EncodedRobot`:
+    latent mean, node latent means, tree).
 
     Raises:
         RobotFileError: the file is not a robot (one line).
     """
     graph = mjcf_to_graph(path, model.feature_set)
     mu, nodes = model.encode_nodes(Batch.from_data_list([graph]))
-    return mu[0], nodes[0]
+    return EncodedRobot(mu[0], nodes[0], (graph.parent, graph.node_type))
 
 
 def _check_out(out: Path) -> None:
@@ -105,58 +125,95 @@ LIKE_BATCH = 256
 
 def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius: float, n: int,
                   out: str | os.PathLike, seed: int = 0, validate: bool = True, jobs: int = 0,
-                  scene: bool = True, overwrite: bool = False,
-                  floating: bool = True) -> GenerationReport:
-    """Write ``n`` variations of ``robot`` within latent ``radius`` (module docstring).
+                  scene: bool = True, overwrite: bool = False, floating: bool = True,
+                  variance: float = LIKE_VARIANCE, redraws: int = 4) -> GenerationReport:
+    """Write ``n`` variations of ``robot`` within ``radius`` prior standard deviations in the
+    prior's principal subspace holding ``variance`` of its variance (module docstring).
 
     Raises:
-        RobovaeError: ``radius < 0`` or ``n < 1``, a bad checkpoint, or ``out`` holds robots of
-            another run (unless ``overwrite``). RobotFileError: ``robot`` is not a robot.
+        RobovaeError: ``radius < 0``, ``n < 1`` or ``redraws < 0``, a bad checkpoint, or
+            ``out`` holds robots of another run (unless ``overwrite``). RobotFileError:
+            ``robot`` is not a robot.
     """
     if not (math.isfinite(radius) and radius >= 0):
         raise RobovaeError(f"robovae: --radius must be a finite number >= 0, got {radius}")
     if n < 1:
         raise RobovaeError(f"robovae: -n must be >= 1, got {n}")
+    if isinstance(redraws, bool) or not isinstance(redraws, int) or redraws < 0:
+        raise RobovaeError(f"robovae: --redraws must be a non-negative integer, got {redraws!r}")
     start = time.perf_counter()
     model = own_model(model)  # decoded in float64: never the caller's object
-    mu, w = encode_file(model, robot)  # refuses a bad file before anything is written
+    encoded = encode_file(model, robot)  # refuses a bad file before anything is written
     out = Path(out)
     digest = hashlib.sha256(Path(robot).read_bytes()).hexdigest()
     claim(out, {"model": model_fingerprint(model), "like": digest, "radius": radius,
-                "seed": seed, "floating": floating, "writer": WRITER}, overwrite)
+                "radius_space": f"prior standard deviations, principal subspace {variance:g}",
+                "seed": seed, "redraws": redraws, "floating": floating, "writer": WRITER},
+          overwrite)
     model = model.to(torch.float64)  # as robovae generate: a robot never depends on its batch
-    mu, w = mu.to(torch.float64), w.to(torch.float64)
+    encoded = encoded._replace(mu=encoded.mu.double(), nodes=encoded.nodes.double())
+    basis = model.prior_directions(variance)[1]
     todo = [i for i in range(n) if i not in read_manifest(out)]
     jobs = jobs or (os.cpu_count() or 1)
     with worker_pool(jobs, warm=True) if jobs > 1 and len(todo) >= 4 else nullcontext() as pool:
         for k in range(0, len(todo), LIKE_BATCH):
-            _like_batch(model, todo[k:k + LIKE_BATCH], mu, w, robot, radius, out, seed,
-                        validate, jobs, scene, floating, pool)
-    reference = reconstruction_record(model, mu, w, floating)
+            _like_batch(model, todo[k:k + LIKE_BATCH], encoded, basis, robot, radius, out,
+                        seed, redraws, validate, jobs, scene, floating, pool)
+    reference = reconstruction_record(model, encoded, floating)
+    spread = prior_spread(model, variance)
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start,
                      extra=lambda records: {"like": like_metrics(records, reference, radius,
-                                                                 prior_spread(model))})
+                                                                 spread)})
 
 
-def prior_spread(model: RoboVAE) -> float:
-    """Root-mean-square distance of the sampling prior's draws from its mean,
-    ``sqrt(tr C)`` (the fitted mixture's covariance :meth:`~robovae.model.latent_mixture.
-    LatentMixture.moments`; ``sqrt(d)`` for ``N(0, I)``): the scale a ``--radius`` compares to."""
-    mix = model.sampling_mixture()
-    if mix is None:
-        return math.sqrt(int(model.hparams.latent_dim))
-    return math.sqrt(float(np.trace(mix.moments()[1])))
+def prior_spread(model: RoboVAE, variance: float = LIKE_VARIANCE) -> float:
+    """Root-mean-square distance of the sampling prior's draws from its mean in the units of
+    ``--radius``: ``sqrt(k)``, ``k`` the dimension of the principal subspace holding
+    ``variance`` of the prior's variance (whitened, each draw's coordinates have unit
+    variance): the scale a radius compares to."""
+    return math.sqrt(model.prior_directions(variance)[1].shape[1])
+
+
+def variation_latents(encoded: EncodedRobot, basis: np.ndarray, radius: float, seed: int,
+                      indices: Sequence[int], draw: int = 0) -> torch.Tensor:
+    """``z_i = mu + R · B y_i`` of variations ``indices`` ``[len, latent_dim]``, ``y_i``
+    uniform in the unit ``k``-ball from variation ``i``'s generator, draw ``draw``
+    (:func:`~robovae.model.prior.latent_rng`: seeded by ``(seed, i)``, a redraw ``k`` by
+    ``(seed, i, 2, k)``)."""
+    offsets = [basis @ ball_offsets(latent_rng(seed, int(i), draw), 1, basis.shape[1],
+                                    radius)[0] for i in indices]
+    return encoded.mu + torch.from_numpy(np.stack(offsets)).to(encoded.mu)
+
+
+def draw_variations(model: RoboVAE, encoded: EncodedRobot, basis: np.ndarray, radius: float,
+                    seed: int, indices: Sequence[int], redraws: int = 4
+                    ) -> tuple[torch.Tensor, list, list[int]]:
+    """``(z, graphs, draws)`` of variations ``indices``: each decoded near the robot
+    (:func:`~robovae.model.node_transfer.decode_near`); one whose decoding did not finish its
+    tree (:func:`~robovae.model.prior.unfinished`) draws its ``y`` again, up to ``redraws``
+    times, as ``robovae generate`` redraws a prior sample (``draws``: the draw kept per
+    variation; the last is kept even if unfinished)."""
+    z = variation_latents(encoded, basis, radius, seed, indices)
+    graphs = decode_near(model, z, [encoded])
+    draws = [0] * len(graphs)
+    todo = [b for b, g in enumerate(graphs) if unfinished(model, g)]
+    for k in range(1, redraws + 1):
+        if not todo:
+            break
+        zk = variation_latents(encoded, basis, radius, seed, [indices[b] for b in todo], k)
+        for b, zb, g in zip(todo, zk, decode_near(model, zk, [encoded])):
+            z[b], graphs[b], draws[b] = zb, g, k
+        todo = [b for b in todo if unfinished(model, graphs[b])]
+    return z, graphs, draws
 
 
 @torch.no_grad()
-def reconstruction_record(model: RoboVAE, mu: torch.Tensor, w: torch.Tensor,
-                          floating: bool = True) -> dict:
+def reconstruction_record(model: RoboVAE, encoded: EncodedRobot, floating: bool = True) -> dict:
     """The manifest record (descriptors only: nothing is written) of the robot decoded from
-    ``mu`` and node latents ``w`` as a variation of radius 0 is."""
-    nodes = [w] if model.hparams.get("node_latent_dim") else None
-    graphs = model.decode(mu[None], node_latents=nodes, clamp=nodes is None)
-    records, _ = prepare_records(model, [0], mu[None], graphs, Path("."), validate=False,
-                                 floating=floating)
+    its latent mean as a variation of radius 0 is."""
+    z = encoded.mu[None]
+    records, _ = prepare_records(model, [0], z, decode_near(model, z, [encoded]), Path("."),
+                                 validate=False, floating=floating)
     return records[0]
 
 
@@ -178,20 +235,14 @@ def like_metrics(records: list[dict], reference: dict, radius: float, spread: fl
     }
 
 
-def _like_batch(model: RoboVAE, chunk: list[int], mu: torch.Tensor, w: torch.Tensor,
-                robot: str | os.PathLike, radius: float, out: Path, seed: int, validate: bool,
-                jobs: int, scene: bool, floating: bool, pool: Executor | None) -> None:
+def _like_batch(model: RoboVAE, chunk: list[int], encoded: EncodedRobot, basis: np.ndarray,
+                robot: str | os.PathLike, radius: float, out: Path, seed: int, redraws: int,
+                validate: bool, jobs: int, scene: bool, floating: bool,
+                pool: Executor | None) -> None:
     """Decode, write and log variations ``chunk`` (:func:`generate_like`)."""
-    zs, ws = [], []
-    for i in chunk:
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, i])))
-        zs.append(mu + torch.from_numpy(ball_offsets(rng, 1, mu.numel(), radius)[0]))
-        ws.append(w + torch.from_numpy(ball_offsets(rng, w.shape[0], w.shape[1], radius)))
-    z = torch.stack(zs)
-    nodes = ws if model.hparams.get("node_latent_dim") else None
-    graphs = model.decode(z, node_latents=nodes, clamp=nodes is None)
+    z, graphs, draws = draw_variations(model, encoded, basis, radius, seed, chunk, redraws)
     records = write_records(model, chunk, z, graphs, out, seed=seed, validate=validate,
-                            jobs=jobs, scene=scene, floating=floating, pool=pool)
+                            jobs=jobs, scene=scene, floating=floating, pool=pool, draws=draws)
     for rec in records:
         rec.pop("temperature", None)
         rec.update(like=str(robot), radius=radius)

@@ -185,8 +185,8 @@ class GenerationReport:
 
 def _like_line(like: dict) -> str:
     """The report's line on variations of one robot (``robovae generate --like``)."""
-    return (f"variations at radius {like['radius']:g} (the prior's draws lie "
-            f"{like['prior_spread']:.2f} from its mean, root mean square): "
+    return (f"variations at radius {like['radius']:g} (in the prior's standard deviations; "
+            f"its draws lie {like['prior_spread']:.2f} from its mean, root mean square): "
             f"the reconstruction's topology kept by {like['same_topology']:.1%}, its limb count "
             f"by {like['same_limbs']:.1%}, nodes changed by {like['nodes_changed']:.1f} on "
             f"average, mass by a factor {like['mass_factor']:.2f} (median)")

@@ -25,7 +25,7 @@ import torch
 from torch import Tensor, nn
 from torch_geometric.data import Batch
 
-__all__ = ["LatentMixture", "fit_to_robots"]
+__all__ = ["LatentMixture", "fit_to_robots", "principal_basis"]
 
 
 class LatentMixture(nn.Module):
@@ -121,6 +121,19 @@ class LatentMixture(nn.Module):
         m = w @ means
         cov = np.diag(w @ var) + (means * w[:, None]).T @ means - np.outer(m, m)
         return m, 0.5 * (cov + cov.T)
+
+
+def principal_basis(cov: np.ndarray, variance: float) -> np.ndarray:
+    """``B = U_k diag(lambda_k)^{1/2}`` ``[d, k]``: the fewest leading eigenvectors of ``cov``
+    (``cov = U diag(lambda) U^T``, ``lambda`` descending), scaled by their standard deviations,
+    that hold the share ``variance`` of its trace (``sum_{i<=k} lambda_i >= variance ·
+    tr cov``). ``z = m + B y`` maps the whitened coordinates ``y`` of the principal subspace
+    to latents: ``y ~ N(0, I_k)`` has the covariance of ``cov`` in that subspace."""
+    lam, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    lam, vecs = np.clip(lam[::-1], 0.0, None), vecs[:, ::-1]
+    share = np.cumsum(lam) / lam.sum()
+    k = min(int(np.searchsorted(share, variance - 1e-9)) + 1, len(lam))
+    return vecs[:, :k] * np.sqrt(lam[:k])
 
 
 @torch.no_grad()

@@ -14,11 +14,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor
 
 from robovae.data.graph import RobotData
-from robovae.model.latent_mixture import LatentMixture
+from robovae.model.latent_mixture import LatentMixture, principal_basis
 from robovae.model.prior import latent, latent_rng, node_noise
 
 __all__ = ["PriorSampling"]
@@ -61,6 +62,25 @@ class PriorSampling:
         mix = self.latent_mixture
         use = self.hparams.get("prior", "standard") == "mixture"
         return mix if use and mix is not None and bool(mix.fitted) else None
+
+    def prior_moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean ``m`` ``[latent_dim]`` and covariance ``C`` ``[latent_dim, latent_dim]``
+        (float64) of the sampling prior: the fitted mixture's
+        (:meth:`~robovae.model.latent_mixture.LatentMixture.moments`), else ``0`` and ``I``."""
+        mix = self.sampling_mixture()
+        if mix is None:
+            d = int(self.hparams.latent_dim)
+            return np.zeros(d), np.eye(d)
+        return mix.moments()
+
+    def prior_directions(self, variance: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+        """``(m, B)``: the sampling prior's mean and the basis ``B = U_k diag(lambda_k)^{1/2}``
+        of its principal subspace holding the share ``variance`` of its variance
+        (:func:`~robovae.model.latent_mixture.principal_basis`), so that ``z = m + B y`` with
+        ``y ~ N(0, I_k)`` is spread like the prior there. ``robovae optimize`` searches ``y``;
+        ``robovae generate --like`` draws its variations in ``y``'s units."""
+        mean, cov = self.prior_moments()
+        return mean, principal_basis(cov, variance)
 
     def prior_latent(self, seed: int, index: int, temperature: float = 1.0,
                      draw: int = 0) -> Tensor:

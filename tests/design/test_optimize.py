@@ -23,7 +23,6 @@ from robovae.design.optimize import (
     WRITER,
     best_so_far,
     optimize,
-    principal_basis,
     score_seeds,
 )
 from robovae.design.score import reach_score, score_robot, walk_score
@@ -109,18 +108,6 @@ def test_best_so_far():
     assert best_so_far([1, 0, 3, 2]).tolist() == [1, 1, 3, 3]
 
 
-def test_principal_basis_keeps_the_leading_variance():
-    rng = np.random.default_rng(0)
-    q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
-    cov = q @ np.diag([4.0, 3.0, 2.0, 0.5, 0.3, 0.2]) @ q.T  # trace 10
-    assert np.allclose(principal_basis(cov, 1.0) @ principal_basis(cov, 1.0).T, cov)
-    b = principal_basis(cov, 0.9)  # 4 + 3 + 2 = 90 % of the trace
-    assert b.shape == (6, 3)
-    assert np.allclose(b.T @ b, np.diag([4.0, 3.0, 2.0]))  # whitened: y ~ N(0, I) -> C_k
-    assert principal_basis(cov, 0.91).shape == (6, 4)
-    assert principal_basis(cov, 0.3).shape == (6, 1)
-
-
 def test_optimize_writes_log_plot_best_and_resumes(trained_nodes, tmp_path):
     model, _, ckpt = trained_nodes
     out = tmp_path / "opt"
@@ -134,9 +121,7 @@ def test_optimize_writes_log_plot_best_and_resumes(trained_nodes, tmp_path):
         assert (out / "best" / m / "rank_1" / "robot.xml").is_file()
     assert all(len(r["z"]) == model.hparams.latent_dim for r in log["evaluations"]["cma"])
     # CMA-ES searches the prior's leading directions: its latents lie in that affine subspace
-    mean, cov = model.sampling_mixture().moments() if model.sampling_mixture() is not None \
-        else (np.zeros(model.hparams.latent_dim), np.eye(model.hparams.latent_dim))
-    basis = principal_basis(cov, 0.5)
+    mean, basis = model.prior_directions(0.5)
     assert log["settings"]["cma_dim"] == basis.shape[1] < model.hparams.latent_dim
     z = np.array([r["z"] for r in log["evaluations"]["cma"]]) - mean
     assert np.allclose(z, z @ basis @ np.linalg.pinv(basis), atol=1e-8)

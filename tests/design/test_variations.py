@@ -6,11 +6,14 @@ import json
 
 import numpy as np
 import pytest
+import torch
 
 from robovae.cli import main
 from robovae.data.procedural import procedural_spec
 from robovae.design import variations
 from robovae.design.variations import SHEET_STEPS, ball_offsets, encode_file, sheet_steps
+from robovae.model.checkpoint import own_model
+from robovae.model.prior import unfinished
 
 
 @pytest.fixture(scope="module")
@@ -46,11 +49,15 @@ def test_like_writes_variations_within_radius(trained_nodes, files, tmp_path, ca
     assert "3 robots" in capsys.readouterr().out
     recs = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
     assert [r["index"] for r in recs] == [0, 1, 2]
-    mu, _ = encode_file(model, a)
+    mu = encode_file(model, a).mu.double().numpy()
+    _, basis = model.prior_directions(variations.LIKE_VARIANCE)
     for r in recs:
         assert r["radius"] == 0.3 and r["like"] == str(a)
         assert (out / r["path"]).is_file()
-        assert np.linalg.norm(np.array(r["latent"]) - mu.numpy()) <= 0.3 + 1e-4
+        # within 0.3 prior standard deviations, in the prior's principal subspace
+        y, *_ = np.linalg.lstsq(basis, np.array(r["latent"]) - mu, rcond=None)
+        assert np.allclose(basis @ y, np.array(r["latent"]) - mu, atol=1e-5)
+        assert 0 < np.linalg.norm(y) <= 0.3 + 1e-4
     # resuming with more robots keeps the first ones byte for byte
     before = (out / "robot_000001" / "robot.xml").read_bytes()
     assert main(argv(5)) == 0
@@ -212,3 +219,22 @@ def test_a_given_model_is_not_changed(trained_nodes, files, tmp_path):
     assert all(p.dtype == torch.float32 for p in model.parameters())
     after = model.state_dict()
     assert all(torch.equal(before[k], after[k]) for k in before)
+
+
+def test_unfinished_variations_are_drawn_again(trained_nodes, files):
+    """A variation whose decoding reaches the node limit draws its ``y`` again from its next
+    stream, up to ``redraws`` times (the last draw kept); without redraws, the first."""
+    model, _, _ = trained_nodes
+    model = own_model(model).to(torch.float64)
+    encoded = encode_file(model, files[0])
+    encoded = encoded._replace(mu=encoded.mu.double(), nodes=encoded.nodes.double())
+    _, basis = model.prior_directions(variations.LIKE_VARIANCE)
+    model.hparams.max_nodes = 3  # every tree is cut off at 3 nodes
+    z, graphs, draws = variations.draw_variations(model, encoded, basis, 1.0, 0, [0, 1], 0)
+    assert draws == [0, 0] and all(unfinished(model, g) for g in graphs)
+    assert torch.equal(z, variations.variation_latents(encoded, basis, 1.0, 0, [0, 1]))
+    z, graphs, draws = variations.draw_variations(model, encoded, basis, 1.0, 0, [0, 1], 3)
+    assert draws == [3, 3] and all(g.num_nodes == 3 for g in graphs)
+    assert torch.equal(z, variations.variation_latents(encoded, basis, 1.0, 0, [0, 1], draw=3))
+    assert not torch.equal(z[0], variations.variation_latents(encoded, basis, 1.0, 0, [0])[0])
+

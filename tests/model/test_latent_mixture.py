@@ -14,7 +14,7 @@ from lightning.pytorch.callbacks import ModelCheckpoint
 from robovae.data.datamodule import RobotDataModule
 from robovae.generate.pipeline import generate
 from robovae.model.checkpoint import load_model
-from robovae.model.latent_mixture import LatentMixture
+from robovae.model.latent_mixture import LatentMixture, principal_basis
 from robovae.model.prior import latent, latent_rng
 from robovae.model.vae import RoboVAE
 
@@ -153,3 +153,29 @@ def test_optimize_starts_cma_with_the_prior_moments(mixture_model, tmp_path):
         assert np.allclose(run.basis @ run.basis.T, np.eye(len(mean)))
     finally:
         model.hparams.prior = "mixture"
+
+
+def test_principal_basis_keeps_the_leading_variance():
+    rng = np.random.default_rng(0)
+    q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    cov = q @ np.diag([4.0, 3.0, 2.0, 0.5, 0.3, 0.2]) @ q.T  # trace 10
+    assert np.allclose(principal_basis(cov, 1.0) @ principal_basis(cov, 1.0).T, cov)
+    b = principal_basis(cov, 0.9)  # 4 + 3 + 2 = 90 % of the trace
+    assert b.shape == (6, 3)
+    assert np.allclose(b.T @ b, np.diag([4.0, 3.0, 2.0]))  # whitened: y ~ N(0, I) -> C_k
+    assert principal_basis(cov, 0.91).shape == (6, 4)
+    assert principal_basis(cov, 0.3).shape == (6, 1)
+
+
+def test_prior_spread_is_the_root_mean_square_of_the_priors_draws(mixture_model):
+    """In the radius' units (whitened principal subspace) the prior's draws lie sqrt(k) from
+    its mean, root mean square: measured on draws of the sampling mixture."""
+    from robovae.design import variations
+
+    model, _, _ = mixture_model
+    mean, basis = model.prior_directions(variations.LIKE_VARIANCE)
+    draws = np.stack([model.prior_latent(0, i).double().numpy() for i in range(4000)])
+    y = np.linalg.lstsq(basis, (draws - mean).T, rcond=None)[0].T
+    assert variations.prior_spread(model) == pytest.approx(np.sqrt(basis.shape[1]))
+    assert np.sqrt((y ** 2).sum(1).mean()) == pytest.approx(variations.prior_spread(model),
+                                                            rel=0.05)
