@@ -103,17 +103,17 @@ def children(parent: Sequence[int] | Any) -> list[list[int]]:
     return out
 
 
-def _paths(parent: Sequence[int], node_type: Sequence[int]) -> list[tuple[tuple[int, int], ...]]:
-    """Each node's path from the root: ``((0, t_root), (r_1, t_1), …, (r, t))``, the child rank
-    ``r`` (0 for the first child of its parent, in pre-order) and the type of every node on it."""
-    out: list[tuple[tuple[int, int], ...]] = []
+def _paths(parent: Sequence[int]) -> list[tuple[int, ...]]:
+    """Each node's place in its tree: the child ranks on its path from the root (``()`` for the
+    root; rank 0 for the first child of its parent, in pre-order)."""
+    out: list[tuple[int, ...]] = []
     ranks: dict[int, int] = {}
-    for i, p in enumerate(parent):
-        step = (0, int(node_type[i]))
-        if p >= 0:
-            step = (ranks.get(p, 0), int(node_type[i]))
-            ranks[p] = step[0] + 1
-        out.append(out[p] + (step,) if p >= 0 else (step,))
+    for p in parent:
+        if p < 0:
+            out.append(())
+        else:
+            ranks[p] = ranks.get(p, -1) + 1
+            out.append(out[p] + (ranks[p],))
     return out
 
 
@@ -122,11 +122,14 @@ def shared_nodes(source: tuple[Sequence[int], Sequence[int]],
     """For each node of the ``target`` tree, the node of the ``source`` tree it shares, or -1.
 
     Both trees are given as ``(parent, node_type)`` in pre-order (root ``-1``; lists, arrays
-    or tensors). A target node shares the source node reached from the root by the same child
-    ranks through nodes of the same types: the two trees agree on everything above it. Equal
-    trees share every node (``[0, 1, …]``); a limb added to the target shares nothing of its
-    own, the nodes after it in pre-order still share theirs.
+    or tensors). A target node shares the source node at the same place — reached from the
+    root by the same child ranks — when the two have the same type: the matching of the
+    reconstruction metrics (:mod:`robovae.evaluate.metrics`, its *correct* pairs). Equal trees
+    share every node (``[0, 1, …]``); a limb added to the target shares nothing of its own, the
+    nodes after it in pre-order still share theirs.
     """
-    index = {path: i for i, path in enumerate(_paths(*map(_as_list, source)))}
-    return np.array([index.get(path, -1) for path in _paths(*map(_as_list, target))],
+    (sp, st), (tp, tt) = map(_as_list, source), map(_as_list, target)
+    index = {path: i for i, path in enumerate(_paths(sp))}
+    out = [index.get(path, -1) for path in _paths(tp)]
+    return np.array([j if j >= 0 and st[j] == tt[i] else -1 for i, j in enumerate(out)],
                     dtype=np.int64)

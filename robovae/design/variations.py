@@ -13,8 +13,8 @@ distance in the prior's standard deviations, along the directions the prior vari
 prior's own draws lie ``sqrt(k)`` from its mean in these units, root mean square
 (:func:`prior_spread`), and the nearly collapsed latent directions, which the decoder hardly
 reads, take none of the radius. The tree and its node types come from ``z`` alone
-(:mod:`robovae.model.decoder`); every node the variation shares with the robot (reached from
-the root by the same child ranks through nodes of the same types,
+(:mod:`robovae.model.decoder`); every node the variation shares with the robot (at the same
+place, reached from the root by the same child ranks, and of the same type,
 :func:`~robovae.data.tree_arrays.shared_nodes`) keeps the robot's node latent, the other nodes
 take their conditional prior mean, as sampled robots do at node temperature 0
 (:mod:`robovae.model.node_transfer`). ``R = 0`` gives the robot's reconstruction ``n`` times.

@@ -4,8 +4,9 @@ A robot's node latents ``w_1 … w_m`` (the encoder's means, pre-order) describe
 latent ``z`` near the robot's (a variation of it, a step of a path from it) may decode to
 another tree, whose ``t``-th node in pre-order is then not the robot's ``t``-th node. Node
 ``t`` of a decoded tree instead takes the latent of the node it **shares** with each robot
-``r`` (:func:`~robovae.data.tree_arrays.shared_nodes`: reached from the root by the same child
-ranks through nodes of the same types; ``s_r(t)``), averaged with the robots' weights ``a_r``:
+``r`` (:func:`~robovae.data.tree_arrays.shared_nodes`: the node at the same place, reached from
+the root by the same child ranks, when it has the same type — the *correct* pairs of the
+reconstruction metrics; ``s_r(t)``), averaged with the robots' weights ``a_r``:
 
 .. math::
     w'_t = \\frac{\\sum_r a_r [t \\in r] \\, w^r_{s_r(t)}}{\\sum_r a_r [t \\in r]}

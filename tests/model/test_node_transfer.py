@@ -1,5 +1,5 @@
 """Node latents carried by correspondence: a decoded tree's node takes the latent of the node it
-shares with the encoded robot (same child ranks and types from the root), not of the node at
+shares with the encoded robot (the same place from the root, the same type), not of the node at
 the same pre-order index; nodes no robot shares take their conditional prior mean."""
 
 from __future__ import annotations
@@ -14,25 +14,27 @@ from robovae.data.tree_arrays import shared_nodes
 from robovae.model.checkpoint import own_model
 from robovae.model.node_transfer import EncodedRobot, carried_latents, decode_near
 
-#        0 (t0)                           0 (t0)
-#       /      \                         / |    \
-#    1 (t1)   3 (t1)    target:      1 (t1) 2 (t2)  4 (t1)
-#      |        |                       |           |
-#    2 (t0)   4 (t0)                 (none)       5 (t0)   and 3 (t0) under 2
+#  source:  0 (t0)                 target:     0 (t0)
+#          /      \                           /   |    \
+#       1 (t1)   3 (t1)                  1 (t1) 2 (t2)  4 (t1)
+#         |        |                              |       |
+#       2 (t0)   4 (t0)                         3 (t0)  5 (t0)
 SOURCE = ([-1, 0, 1, 0, 3], [0, 1, 0, 1, 0])
 TARGET = ([-1, 0, 0, 2, 0, 4], [0, 1, 2, 0, 1, 0])
 
 
-def test_shared_nodes_follow_child_ranks_and_types():
+def test_shared_nodes_are_the_same_place_and_type():
     assert shared_nodes(SOURCE, SOURCE).tolist() == [0, 1, 2, 3, 4]
-    # target node 2 is a new second child (type 2): it and its child share nothing; the root's
-    # third child (4) is not the source's second child (3), whatever their types
-    assert shared_nodes(SOURCE, TARGET).tolist() == [0, 1, -1, -1, -1, -1]
+    # target 2 sits where source 3 does, of another type: not shared; its child 3 sits where
+    # source 4 does, of the same type: shared (the metrics' correct pairs ignore the parent's
+    # type too); the root's third child (4) and its child have no place in the source
+    assert shared_nodes(SOURCE, TARGET).tolist() == [0, 1, -1, 4, -1, -1]
     # a limb appended after the source's nodes leaves every earlier node shared
     longer = (SOURCE[0] + [0, 5], SOURCE[1] + [1, 0])
     assert shared_nodes(SOURCE, longer).tolist() == [0, 1, 2, 3, 4, -1, -1]
-    # a different root type shares nothing
-    assert shared_nodes(SOURCE, ([-1, 0], [1, 1])).tolist() == [-1, -1]
+    # a limb inserted before others moves them in pre-order, not in place
+    inserted = ([-1, 0, 1, 1, 0, 4], [0, 1, 0, 2, 1, 0])
+    assert shared_nodes(SOURCE, inserted).tolist() == [0, 1, 2, -1, 3, 4]
     # tensors and arrays are taken as lists are
     assert shared_nodes((torch.tensor(SOURCE[0]), np.array(SOURCE[1])), SOURCE).tolist() == \
         [0, 1, 2, 3, 4]
@@ -45,15 +47,17 @@ def _robot(tree, nodes):
 def test_carried_latents_average_the_robots_sharing_a_node():
     a = _robot(SOURCE, [[float(i), 0.0] for i in range(5)])
     b = _robot(TARGET, [[0.0, 10.0 + i] for i in range(6)])
+    alone = [0, 1, 3]  # the target's nodes a shares (with a's nodes 0, 1, 4)
     w = carried_latents(TARGET, [a], [1.0])
-    assert w[:2].tolist() == [[0.0, 0.0], [1.0, 0.0]] and torch.isnan(w[2:]).all()
+    assert w[alone].tolist() == [[0.0, 0.0], [1.0, 0.0], [4.0, 0.0]]
+    assert torch.isnan(w[[2, 4, 5]]).all()
     w = carried_latents(TARGET, [a, b], [0.75, 0.25])
-    # nodes 0 and 1 both robots have: weighted; the others only b: b's own
-    assert torch.allclose(w[0], torch.tensor([0.0, 2.5], dtype=w.dtype))
-    assert torch.allclose(w[1], torch.tensor([0.75, 2.75], dtype=w.dtype))
-    assert torch.equal(w[2:], b.nodes[2:])
+    # nodes both robots have: weighted; the others only b: b's own
+    want = 0.75 * a.nodes[[0, 1, 4]] + 0.25 * b.nodes[alone]
+    assert torch.allclose(w[alone], want)
+    assert torch.equal(w[[2, 4, 5]], b.nodes[[2, 4, 5]])
     # a robot of weight 0 carries nothing
-    assert torch.isnan(carried_latents(TARGET, [a, b], [1.0, 0.0])[2:]).all()
+    assert torch.isnan(carried_latents(TARGET, [a, b], [1.0, 0.0])[[2, 4, 5]]).all()
 
 
 def test_nan_node_latents_take_the_conditional_prior_mean(trained_nodes):
