@@ -250,9 +250,9 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--seed", type=int, default=0)
     o.add_argument("--top", type=int, default=10,
                    help="best robots written and re-scored with held-out seeds, per method")
-    o.add_argument("--variance", type=float, default=0.95,
+    o.add_argument("--variance", type=float, default=0.9,
                    help="CMA-ES searches the sampling prior's leading directions that hold this "
-                        "share of its variance (1: the whole latent space)")
+                        "share of its variance (1: the whole latent space; docs/design.md)")
     o.add_argument("--population", type=int, default=None,
                    help="CMA-ES candidates per generation (default: 4 + floor(3 ln k) for k "
                         "searched directions)")

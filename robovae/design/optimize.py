@@ -7,8 +7,8 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
   the prior's mean ``m_0`` and covariance ``C_0 = U diag(lambda) U^T`` (the fitted latent
   mixture's :meth:`~robovae.model.latent_mixture.LatentMixture.moments`, or ``0`` and ``I`` for
   ``N(0, I)``; eigenvalues in decreasing order), the search keeps the ``k`` leading directions
-  that hold the share ``variance`` of the prior's variance (``sum_{i<=k} lambda_i >= variance
-  sum_i lambda_i``) and whitens them:
+  that hold the share ``variance`` (default 0.9) of the prior's variance (``sum_{i<=k}
+  lambda_i >= variance sum_i lambda_i``) and whitens them:
 
   .. math::  z = m_0 + U_k \mathrm{diag}(\lambda_k)^{1/2} y, \qquad y \in R^k,
 
@@ -368,7 +368,7 @@ class _Run:
 
 def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str | os.PathLike,
              seed: int = 0, jobs: int = 0, top: int = 10, progress: bool = True,
-             variance: float = 0.95, population: int | None = None,
+             variance: float = 0.9, population: int | None = None,
              score_sets: int = 1, restart_after: int = RESTART_AFTER,
              local_step: float = LOCAL_SIGMA) -> dict:
     """Run (or continue) an optimisation (module docstring). ``population``: CMA-ES candidates

@@ -8,7 +8,7 @@ the robot file is encoded to its latent mean ``mu`` and its nodes' latent means 
 
 ``B = U_k diag(lambda_k)^{1/2}`` the basis of the sampling prior's principal subspace that
 holds the share ``variance`` (0.95) of its variance (:meth:`~robovae.model.sampling.
-PriorSampling.prior_directions`, the space ``robovae optimize`` searches). So ``R`` is a
+PriorSampling.prior_directions`; ``robovae optimize`` searches such a space). So ``R`` is a
 distance in the prior's standard deviations, along the directions the prior varies in: the
 prior's own draws lie ``sqrt(k)`` from its mean in these units, root mean square
 (:func:`prior_spread`), and the nearly collapsed latent directions, which the decoder hardly
@@ -85,8 +85,8 @@ __all__ = ["ball_offsets", "draw_variations", "encode_file", "generate_like",
            "interpolate_files", "like_metrics", "prior_spread", "reconstruction_record",
            "variation_latents"]
 
-#: Share of the sampling prior's variance that the variations' subspace holds (as the default
-#: ``--variance`` of ``robovae optimize``).
+#: Share of the sampling prior's variance that the variations' subspace holds (every direction
+#: the prior varies in; ``robovae optimize`` searches a narrower one by default, 0.9).
 LIKE_VARIANCE = 0.95
 
 

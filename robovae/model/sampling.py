@@ -77,8 +77,9 @@ class PriorSampling:
         """``(m, B)``: the sampling prior's mean and the basis ``B = U_k diag(lambda_k)^{1/2}``
         of its principal subspace holding the share ``variance`` of its variance
         (:func:`~robovae.model.latent_mixture.principal_basis`), so that ``z = m + B y`` with
-        ``y ~ N(0, I_k)`` is spread like the prior there. ``robovae optimize`` searches ``y``;
-        ``robovae generate --like`` draws its variations in ``y``'s units."""
+        ``y ~ N(0, I_k)`` is spread like the prior there. ``robovae optimize`` searches ``y``
+        (``variance`` 0.9); ``robovae generate --like`` draws its variations in ``y``'s units
+        (0.95)."""
         mean, cov = self.prior_moments()
         return mean, principal_basis(cov, variance)
 
