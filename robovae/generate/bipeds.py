@@ -163,6 +163,19 @@ def two_legs(model: mujoco.MjModel, data: mujoco.MjData, root: int,
                    feet, owner)
 
 
+def _floating_legs(model: mujoco.MjModel, root: int, data: mujoco.MjData | None,
+                   points: Points | None, legs: TwoLegs | None
+                   ) -> tuple[mujoco.MjData, TwoLegs] | None:
+    """``(data, legs)`` of a free-floating ``root`` on two legs (``data`` at ``qpos0``, made
+    when not given; ``legs`` :func:`two_legs`, computed when not given), else None: what
+    :func:`foot_soles` and :func:`strong_ankles` start from."""
+    if model.body_jntnum[root] < 1 or model.jnt_type[model.body_jntadr[root]] != _FREE:
+        return None
+    data = at_qpos0(model, data)
+    two = legs or two_legs(model, data, root, points)
+    return None if two is None else (data, two)
+
+
 def foot_soles(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
                data: mujoco.MjData | None = None, points: Points | None = None,
                legs: TwoLegs | None = None) -> bool:
@@ -172,12 +185,10 @@ def foot_soles(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
     ``subtree_com`` is computed); ``points``: :func:`candidate_points` at that pose;
     ``legs``: :func:`two_legs` at it. Returns whether soles were added (``model`` is then out
     of date)."""
-    if model.body_jntnum[root] < 1 or model.jnt_type[model.body_jntadr[root]] != _FREE:
+    found = _floating_legs(model, root, data, points, legs)
+    if found is None:
         return False
-    data = at_qpos0(model, data)
-    two = legs or two_legs(model, data, root, points)
-    if two is None:
-        return False
+    data, two = found
     mujoco.mj_comPos(model, data)
     pts, sag, lat = two.points, two.sagittal, two.lateral
     low = float(pts[:, 2].min())
@@ -220,12 +231,10 @@ def strong_ankles(spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
     ``data``: its kinematics at ``qpos0`` (made here when not given); ``points``:
     :func:`candidate_points` at that pose; ``legs``: :func:`two_legs` at it. Returns whether an
     ankle was made stronger."""
-    if model.body_jntnum[root] < 1 or model.jnt_type[model.body_jntadr[root]] != _FREE:
+    found = _floating_legs(model, root, data, points, legs)
+    if found is None:
         return False
-    data = at_qpos0(model, data)
-    two = legs or two_legs(model, data, root, points)
-    if two is None:
-        return False
+    data, two = found
     strength = joint_strength(model)
     weight = float(model.body_subtreemass[root]) * float(np.linalg.norm(model.opt.gravity))
     fired = False
