@@ -78,7 +78,7 @@ from robovae.generate.pipeline import (
 from robovae.generate.writer import WRITER
 from robovae.model.checkpoint import own_model
 from robovae.model.node_transfer import EncodedRobot, decode_near
-from robovae.model.prior import latent_rng, unfinished
+from robovae.model.prior import latent_rng, redraw_unfinished
 from robovae.model.vae import RoboVAE
 
 __all__ = ["ball_offsets", "draw_variations", "encode_file", "generate_like",
@@ -194,17 +194,12 @@ def draw_variations(model: RoboVAE, encoded: EncodedRobot, basis: np.ndarray, ra
     times, as ``robovae generate`` redraws a prior sample (``draws``: the draw kept per
     variation; the last is kept even if unfinished)."""
     z = variation_latents(encoded, basis, radius, seed, indices)
-    graphs = decode_near(model, z, [encoded])
-    draws = [0] * len(graphs)
-    todo = [b for b, g in enumerate(graphs) if unfinished(model, g)]
-    for k in range(1, redraws + 1):
-        if not todo:
-            break
-        zk = variation_latents(encoded, basis, radius, seed, [indices[b] for b in todo], k)
-        for b, zb, g in zip(todo, zk, decode_near(model, zk, [encoded])):
-            z[b], graphs[b], draws[b] = zb, g, k
-        todo = [b for b in todo if unfinished(model, graphs[b])]
-    return z, graphs, draws
+
+    def redraw(rows: list[int], k: int) -> tuple[torch.Tensor, list]:
+        zk = variation_latents(encoded, basis, radius, seed, [indices[b] for b in rows], k)
+        return zk, decode_near(model, zk, [encoded])
+
+    return redraw_unfinished(model, z, decode_near(model, z, [encoded]), redraw, redraws)
 
 
 @torch.no_grad()

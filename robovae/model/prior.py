@@ -11,7 +11,7 @@ sampling from the prior conditioned on a finished tree, every redraw counted per
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -85,15 +85,30 @@ def draw_robots(model: PriorModel, seed: int, indices: Sequence[int], temperatur
     """
     z, eps = model.sample_prior(seed, indices, temperature, node_temperature)
     eps = eps if noise else None
-    graphs = model.decode(z, node_noise=eps)
+
+    def redraw(rows: list[int], k: int) -> tuple[torch.Tensor, list[RobotData]]:
+        zk = torch.stack([model.prior_latent(seed, int(indices[b]), temperature, draw=k)
+                          for b in rows]).to(z)
+        return zk, model.decode(zk, node_noise=None if eps is None else eps[rows])
+
+    return redraw_unfinished(model, z, model.decode(z, node_noise=eps), redraw, redraws)
+
+
+def redraw_unfinished(model: PriorModel, z: torch.Tensor, graphs: list,
+                      redraw: Callable[[list[int], int], tuple[torch.Tensor, list]],
+                      redraws: int) -> tuple[torch.Tensor, list, list[int]]:
+    """Replace the unfinished decodings (:func:`unfinished`) among ``graphs``, decoded from the
+    rows of ``z``: ``redraw(rows, k)`` gives draw ``k`` (1, 2, …, at most ``redraws``) of those
+    rows, ``(z_k, graphs_k)``, until every tree is finished. ``z`` and ``graphs`` are updated in
+    place; returns ``(z, graphs, draws)``, ``draws`` the draw kept per row (the last is kept even
+    if unfinished). The one redraw rule of prior samples (:func:`draw_robots`) and of a robot's
+    variations (:func:`robovae.design.variations.draw_variations`)."""
     draws = [0] * len(graphs)
     todo = [b for b, g in enumerate(graphs) if unfinished(model, g)]
     for k in range(1, redraws + 1):
         if not todo:
             break
-        zk = torch.stack([model.prior_latent(seed, int(indices[b]), temperature, draw=k)
-                          for b in todo]).to(z)
-        again = model.decode(zk, node_noise=None if eps is None else eps[todo])
+        zk, again = redraw(todo, k)
         for b, zb, g in zip(todo, zk, again):
             z[b], graphs[b], draws[b] = zb, g, k
         todo = [b for b in todo if unfinished(model, graphs[b])]
