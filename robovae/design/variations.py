@@ -7,8 +7,9 @@ the robot file is encoded to its latent mean ``mu`` and its nodes' latent means 
     z_i = mu + R · B y_i,    y_i uniform in the unit ball of R^k,
 
 ``B = U_k diag(lambda_k)^{1/2}`` the basis of the sampling prior's principal subspace that
-holds the share ``variance`` (0.95) of its variance (:meth:`~robovae.model.sampling.
-PriorSampling.prior_directions`; ``robovae optimize`` searches such a space). So ``R`` is a
+holds the share ``variance`` (0.95) of its variance
+(:meth:`~robovae.model.sampling.PriorSampling.prior_directions`; ``robovae optimize``
+searches such a space). So ``R`` is a
 distance in the prior's standard deviations, along the directions the prior varies in: the
 prior's own draws lie ``sqrt(k)`` from its mean in these units, root mean square
 (:func:`prior_spread`), and the nearly collapsed latent directions, which the decoder hardly

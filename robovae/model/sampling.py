@@ -73,7 +73,7 @@ class PriorSampling:
             return np.zeros(d), np.eye(d)
         return mix.moments()
 
-    def prior_directions(self, variance: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+    def prior_directions(self, variance: float) -> tuple[np.ndarray, np.ndarray]:
         """``(m, B)``: the sampling prior's mean and the basis ``B = U_k diag(lambda_k)^{1/2}``
         of its principal subspace holding the share ``variance`` of its variance
         (:func:`~robovae.model.latent_mixture.principal_basis`), so that ``z = m + B y`` with
