@@ -61,8 +61,8 @@ from mujoco import rollout
 from robovae.data.loading import capture_mujoco_warnings, quiet_forward
 from robovae.evaluate.quality.stage import Robot, rest_pose, stage
 
-__all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "actuated_base", "continuous_actuators",
-           "gait", "gait_speed", "sinusoid_controls"]
+__all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "GaitTrials", "actuated_base",
+           "continuous_actuators", "gait", "gait_speed", "random_gaits", "sinusoid_controls"]
 
 #: Seconds between the samples that look for a fall (``max_tilt``) or a flight.
 FALL_SAMPLE_DT = 0.01
@@ -177,6 +177,110 @@ def _mean_power(model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray,
     return total / max(n, 1)
 
 
+class GaitTrials:
+    """A robot staged once (:func:`~robovae.evaluate.quality.stage.stage`) to score open-loop
+    sinusoidal gaits in batches (module docstring): every rollout of :meth:`run` starts from
+    the same rest state and lasts ``steps`` physics steps; :func:`gait` runs its random gaits
+    through one, :func:`~robovae.evaluate.quality.gait_search.searched_gait` its CMA-ES
+    generations. ``settle``: the share of each rollout before the distance counts;
+    ``max_tilt``: degrees past which a gait has fallen (None: falls are not checked);
+    ``max_steps`` caps the steps per rollout.
+
+    Raises:
+        RobovaeError: a model without a floor; RobotFileError: a file that does not load.
+    """
+
+    def __init__(self, robot: Robot, seconds: float = 4.0, settle: float = 0.25,
+                 max_steps: int = 2_000, max_tilt: float | None = None) -> None:
+        st = stage(robot)
+        self.model, self.root, self.extent, self.floor_z = st.model, st.root, st.extent, \
+            st.floor_z
+        model, root = self.model, self.root
+        dt = model.opt.timestep
+        self.steps = min(max(1, round(seconds / dt)), max_steps)
+        self.mass = float(model.body_subtreemass[root])
+        #: a motor drives the root relative to the world: nothing this robot does is walking
+        self.actuated_base = model.nu > 0 and actuated_base(model, root)
+        #: ``[nu]``: the actuators that get an offset (:func:`continuous_actuators`)
+        self.continuous = continuous_actuators(model)
+        self.data = data = mujoco.MjData(model)
+        data.qpos[:] = rest_pose(model)
+        quiet_forward(model, data)
+        self.up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
+        self.bodies = np.flatnonzero(model.body_rootid == model.body_rootid[root])
+        self.com_limit = _com_z(model, data, self.bodies) + MAX_RISE * self.extent
+        self.cos_tilt = math.cos(math.radians(max_tilt)) if max_tilt is not None else None
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        self.state0 = np.empty(mujoco.mj_stateSize(model, spec))
+        mujoco.mj_getState(model, data, self.state0, spec)
+        steps = self.steps
+        self.first = min(int(settle * steps), steps - 1)  # state index where distance starts
+        self.span = (steps - 1 - self.first) * dt if self.first < steps - 1 else steps * dt
+
+    @property
+    def seconds(self) -> float:
+        """Simulated seconds per rollout."""
+        return self.steps * self.model.opt.timestep
+
+    def run(self, amplitude: np.ndarray, phase: np.ndarray, frequency: np.ndarray,
+            offset: np.ndarray) -> tuple[np.ndarray, int, tuple[np.ndarray, np.ndarray, int]]:
+        """Roll out ``R`` gaits (``amplitude``, ``phase``, ``offset`` ``[R, nu]``,
+        ``frequency`` ``[R]`` Hz) in one ``mujoco.rollout`` call: their horizontal root speeds
+        (m/s) ``[R]``, 0 for a rollout that went unstable, fell through the floor, flew or fell
+        before the distance counts; the number of unstable, sunk or flying rollouts; and the
+        best rollout's ``(states, controls, last counted state)``, for its power."""
+        model, data, root = self.model, self.data, self.root
+        ctrl = sinusoid_controls(model, amplitude, phase, frequency, self.steps, offset)
+        with capture_mujoco_warnings():
+            states, _ = rollout.rollout(model, data, self.state0[None], ctrl, nstep=self.steps)
+        rollouts = len(frequency)
+        speeds = np.zeros(rollouts)
+        lasts = np.zeros(rollouts, dtype=int)
+        bad = 0
+        for r in range(rollouts):
+            s = states[r]
+            if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
+                bad += 1
+                continue
+            if _root_pos(model, data, s[-1, 1:1 + model.nq], root)[2] < \
+                    self.floor_z - self.extent:
+                bad += 1  # fell through the floor (no collision geoms)
+                continue
+            fell, flew = _scan(model, data, s, root, self.bodies, self.up_local,
+                               self.cos_tilt, self.com_limit)
+            if flew:
+                bad += 1  # a leap or numerical energy: not walking
+                continue
+            last = len(s) - 1 if fell is None else fell
+            if last <= self.first:  # fell before the distance counts
+                continue
+            start = _root_pos(model, data, s[self.first, 1:1 + model.nq], root)
+            end = _root_pos(model, data, s[last, 1:1 + model.nq], root)
+            speeds[r], lasts[r] = float(np.linalg.norm((end - start)[:2])) / self.span, last
+        best = int(np.argmax(speeds))
+        return speeds, bad, (states[best], ctrl[best], int(lasts[best]))
+
+    def power(self, best: tuple[np.ndarray, np.ndarray, int]) -> float:
+        """Mean mechanical power (W) of a rollout ``(states, controls, last counted state)``
+        while its distance counts (:func:`_mean_power`)."""
+        states, ctrl, last = best
+        return _mean_power(self.model, self.data, states, ctrl, self.first, last)
+
+    def result(self, speed: float, frequency: float, amplitude: np.ndarray, phase: np.ndarray,
+               offset: np.ndarray, unstable: int, rollouts: int, power: float) -> GaitResult:
+        """A :class:`GaitResult` of this robot for its best gait (``speed`` in m/s)."""
+        return GaitResult(speed / self.extent, speed, self.extent, frequency, amplitude, phase,
+                          unstable, rollouts, self.seconds, offset=offset, power=power,
+                          mass=self.mass)
+
+    def nothing(self, rollouts: int) -> GaitResult:
+        """The result of a robot that cannot walk (no actuators, or an actuated base)."""
+        nu = self.model.nu
+        return GaitResult(0.0, 0.0, self.extent, math.nan, np.zeros(nu), np.zeros(nu), 0,
+                          max(rollouts, 0), self.seconds, self.actuated_base, np.zeros(nu),
+                          mass=self.mass)
+
+
 def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
          frequency: tuple[float, float] = (0.5, 3.0), settle: float = 0.25,
          max_steps: int = 2_000, max_tilt: float | None = None) -> GaitResult:
@@ -190,63 +294,30 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     Raises:
         RobovaeError: a model without a floor; RobotFileError: a file that does not load.
     """
-    st = stage(robot)
-    model, root = st.model, st.root
-    dt = model.opt.timestep
-    steps = min(max(1, round(seconds / dt)), max_steps)
-    nan = math.nan
-    driven = model.nu > 0 and actuated_base(model, root)
-    if model.nu == 0 or rollouts <= 0 or driven:
-        return GaitResult(0.0, 0.0, st.extent, nan, np.zeros(model.nu), np.zeros(model.nu),
-                          0, max(rollouts, 0), steps * dt, driven, np.zeros(model.nu),
-                          mass=float(model.body_subtreemass[root]))
-    rng = np.random.default_rng(seed)
-    amp = rng.uniform(0.0, 1.0, (rollouts, model.nu))
-    phase = rng.uniform(0.0, 2 * np.pi, (rollouts, model.nu))
-    freq = rng.uniform(frequency[0], frequency[1], rollouts)
-    offset = rng.uniform(-1.0, 1.0, (rollouts, model.nu)) * continuous_actuators(model)
-    ctrl = sinusoid_controls(model, amp, phase, freq, steps, offset)
-    data = mujoco.MjData(model)
-    data.qpos[:] = rest_pose(model)
-    quiet_forward(model, data)
-    up_local = data.xmat[root].reshape(3, 3).T @ np.array([0.0, 0.0, 1.0])
-    bodies = np.flatnonzero(model.body_rootid == model.body_rootid[root])
-    com_limit = _com_z(model, data, bodies) + MAX_RISE * st.extent
-    cos_tilt = math.cos(math.radians(max_tilt)) if max_tilt is not None else None
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    state0 = np.empty(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, data, state0, spec)
-    first = min(int(settle * steps), steps - 1)  # state index where the distance starts
-    span = (steps - 1 - first) * dt if first < steps - 1 else steps * dt
-    with capture_mujoco_warnings():
-        states, _ = rollout.rollout(model, data, state0[None], ctrl, nstep=steps)
-    speeds = np.zeros(rollouts)
-    lasts = np.zeros(rollouts, dtype=int)
-    bad = 0
-    for r in range(rollouts):
-        s = states[r]
-        if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
-            bad += 1
-            continue
-        if _root_pos(model, data, s[-1, 1:1 + model.nq], root)[2] < st.floor_z - st.extent:
-            bad += 1  # fell through the floor (no collision geoms)
-            continue
-        fell, flew = _scan(model, data, s, root, bodies, up_local, cos_tilt, com_limit)
-        if flew:
-            bad += 1  # a leap or numerical energy: not walking
-            continue
-        last = len(s) - 1 if fell is None else fell
-        if last <= first:  # fell before the distance counts
-            continue
-        start = _root_pos(model, data, s[first, 1:1 + model.nq], root)
-        end = _root_pos(model, data, s[last, 1:1 + model.nq], root)
-        speeds[r], lasts[r] = float(np.linalg.norm((end - start)[:2])) / span, last
+    trials = GaitTrials(robot, seconds, settle, max_steps, max_tilt)
+    nu = trials.model.nu
+    if nu == 0 or rollouts <= 0 or trials.actuated_base:
+        return trials.nothing(rollouts)
+    amp, phase, freq, offset = random_gaits(np.random.default_rng(seed), rollouts, nu,
+                                            frequency, trials.continuous)
+    speeds, bad, best_run = trials.run(amp, phase, freq, offset)
     best = int(np.argmax(speeds))
-    power = _mean_power(model, data, states[best], ctrl[best], first, int(lasts[best])) \
-        if speeds[best] > 0 else 0.0
-    return GaitResult(float(speeds[best]) / st.extent, float(speeds[best]), st.extent,
-                      float(freq[best]), amp[best], phase[best], bad, rollouts, steps * dt,
-                      offset=offset[best], power=power, mass=float(model.body_subtreemass[root]))
+    power = trials.power(best_run) if speeds[best] > 0 else 0.0
+    return trials.result(float(speeds[best]), float(freq[best]), amp[best], phase[best],
+                         offset[best], bad, rollouts, power)
+
+
+def random_gaits(rng: np.random.Generator, rollouts: int, nu: int,
+                 frequency: tuple[float, float], continuous: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``rollouts`` random gaits (module docstring) for ``nu`` actuators, ``continuous``
+    ``[nu]`` those that get an offset: ``(amplitude, phase, frequency, offset)``, drawn in
+    that order (the offsets last)."""
+    amp = rng.uniform(0.0, 1.0, (rollouts, nu))
+    phase = rng.uniform(0.0, 2 * np.pi, (rollouts, nu))
+    freq = rng.uniform(frequency[0], frequency[1], rollouts)
+    offset = rng.uniform(-1.0, 1.0, (rollouts, nu)) * continuous
+    return amp, phase, freq, offset
 
 
 def gait_speed(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0) -> float:

@@ -1,0 +1,90 @@
+"""Open-loop gaits tuned to the body with CMA-ES: how fast can this robot go?
+
+:func:`~robovae.evaluate.quality.locomotion.gait` draws random sinusoidal gaits; a robot's best
+of a few random gaits is a lower bound on its speed that the luck of the draw dominates (a
+robot several gaits of the draw happen to suit beats a better body). :func:`searched_gait`
+starts with the same random gaits (the same ``seed`` and ``rollouts`` give the same first
+rollouts, so its speed is never below :func:`gait`'s) and goes on with CMA-ES (the ``cmaes``
+package) over the gait's parameters, from the best random gait:
+
+    x = [A_1 … A_nu,  phi_1 / 2π … phi_nu / 2π,  (f - f_lo) / (f_hi - f_lo),  B_c …]
+
+amplitudes in [0, 1], phases in turns (periodic; bounded at ±10 turns only because the
+package wants bounds), the frequency scaled into [0, 1], offsets in [-1, 1] for the actuators
+of unlimited hinges only (:func:`~robovae.evaluate.quality.locomotion.continuous_actuators`):
+``2 nu + 1 + n_c`` numbers, step size ``step`` (0.3) and a population of ``population`` (16),
+one ``mujoco.rollout`` call per generation, for ``refine // population`` generations. The
+objective is the same speed, fall, flight and divergence rules as :func:`gait` (the same
+:class:`~robovae.evaluate.quality.locomotion.GaitTrials`); the result is the best gait of all
+rollouts, ``GaitResult.rollouts`` counting all of them. Deterministic for a robot and
+``seed``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from cmaes import CMA
+
+from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, random_gaits
+from robovae.evaluate.quality.stage import Robot
+
+__all__ = ["searched_gait"]
+
+#: Bound of the phases, in turns: the search needs bounds, a phase is periodic.
+_PHASE_TURNS = 10.0
+
+
+def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: float = 4.0,
+                  seed: int = 0, frequency: tuple[float, float] = (0.5, 3.0),
+                  settle: float = 0.25, max_steps: int = 2_000,
+                  max_tilt: float | None = None, population: int = 16,
+                  step: float = 0.3) -> GaitResult:
+    """``rollouts`` random gaits (:func:`~robovae.evaluate.quality.locomotion.gait`, the same
+    arguments), then ``refine // population`` CMA-ES generations of ``population`` gaits from
+    the best of them (module docstring). ``step``: CMA-ES's initial step size in the
+    parameters' units (amplitude, turns of phase, share of the frequency range, offset).
+
+    Raises:
+        ValueError: ``rollouts`` below 1, ``refine`` below 0, ``population`` below 2 or
+            ``step`` not > 0.
+        RobovaeError: a model without a floor; RobotFileError: a file that does not load.
+    """
+    if rollouts < 1 or refine < 0 or population < 2 or not step > 0:
+        raise ValueError(f"searched_gait: rollouts ({rollouts}) must be >= 1, refine "
+                         f"({refine}) >= 0, population ({population}) >= 2, step ({step}) > 0")
+    trials = GaitTrials(robot, seconds, settle, max_steps, max_tilt)
+    nu = trials.model.nu
+    generations = refine // population
+    if nu == 0 or trials.actuated_base:
+        return trials.nothing(rollouts + generations * population)
+    amp, phase, freq, offset = random_gaits(np.random.default_rng(seed), rollouts, nu,
+                                            frequency, trials.continuous)
+    speeds, unstable, best_run = trials.run(amp, phase, freq, offset)
+    k = int(np.argmax(speeds))
+    best = (float(speeds[k]), float(freq[k]), amp[k], phase[k], offset[k], best_run)
+    cont = np.flatnonzero(trials.continuous)
+    f_lo, f_span = frequency[0], frequency[1] - frequency[0]
+    mean = np.concatenate([amp[k], phase[k] / (2 * np.pi), [(freq[k] - f_lo) / f_span],
+                           offset[k, cont]])
+    bounds = np.concatenate([np.tile([0.0, 1.0], (nu, 1)),
+                             np.tile([-_PHASE_TURNS, _PHASE_TURNS], (nu, 1)), [[0.0, 1.0]],
+                             np.tile([-1.0, 1.0], (len(cont), 1))])
+    optimizer = CMA(mean=mean, sigma=step, bounds=bounds, population_size=population,
+                    seed=seed)
+    for _ in range(generations):
+        xs = np.array([optimizer.ask() for _ in range(population)])
+        g_amp, g_phase = xs[:, :nu], xs[:, nu:2 * nu] * (2 * np.pi)
+        g_freq = f_lo + f_span * xs[:, 2 * nu]
+        g_offset = np.zeros((population, nu))
+        g_offset[:, cont] = xs[:, 2 * nu + 1:]
+        speeds, bad, run = trials.run(g_amp, g_phase, g_freq, g_offset)
+        unstable += bad
+        k = int(np.argmax(speeds))
+        if speeds[k] > best[0]:
+            best = (float(speeds[k]), float(g_freq[k]), g_amp[k], np.mod(g_phase[k], 2 * np.pi),
+                    g_offset[k], run)
+        optimizer.tell(list(zip(xs, -speeds)))
+    speed, freq_best, amp_best, phase_best, offset_best, run = best
+    power = trials.power(run) if speed > 0 else 0.0
+    return trials.result(speed, freq_best, amp_best, phase_best, offset_best, unstable,
+                         rollouts + generations * population, power)

@@ -1,0 +1,57 @@
+"""CMA-ES over a robot's open-loop gait (robovae.evaluate.quality.gait_search)."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from robovae.data.procedural import procedural_spec
+from robovae.evaluate.quality.gait_search import searched_gait
+from robovae.evaluate.quality.locomotion import GaitTrials, gait
+
+FAST = {"rollouts": 8, "seconds": 2.0}
+
+
+def test_the_search_starts_from_the_random_gaits_and_goes_faster() -> None:
+    """The same seed gives the same first rollouts as the random search, so the searched
+    speed is never lower; tuning the gait to the body makes a quadruped faster."""
+    drawn = gait(procedural_spec(2, "quadruped"), **FAST)
+    searched = searched_gait(procedural_spec(2, "quadruped"), refine=32, **FAST)
+    again = searched_gait(procedural_spec(2, "quadruped"), refine=32, **FAST)
+    none = searched_gait(procedural_spec(2, "quadruped"), refine=0, **FAST)
+    assert searched.speed > 1.2 * drawn.speed and searched.rollouts == 8 + 32
+    assert again.speed == searched.speed and np.array_equal(again.phase, searched.phase)
+    assert none.speed == drawn.speed and none.frequency == drawn.frequency
+    assert 0.5 <= searched.frequency <= 3.0 and np.all((searched.amplitude >= 0)
+                                                       & (searched.amplitude <= 1))
+    assert np.all((searched.phase >= 0) & (searched.phase < 2 * math.pi))
+    assert searched.power > 0 and searched.speed == pytest.approx(searched.speed_m_s
+                                                                  / searched.extent)
+
+
+def test_the_searched_gait_replays_at_its_speed() -> None:
+    """The gait returned is a gait: rolled out again, it covers the reported distance."""
+    r = searched_gait(procedural_spec(5, "quadruped"), refine=32, **FAST)
+    trials = GaitTrials(procedural_spec(5, "quadruped"), seconds=2.0)
+    speeds, _, _ = trials.run(r.amplitude[None], r.phase[None], np.array([r.frequency]),
+                              r.offset[None])
+    assert speeds[0] == pytest.approx(r.speed_m_s, rel=1e-9)
+
+
+def test_a_robot_without_actuators_has_no_gait_to_search() -> None:
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="box", pos=[0, 0, 0.2])
+    body.add_freejoint()
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.2, 0.1, 0.1])
+    r = searched_gait(spec, refine=32, **FAST)
+    assert r.speed == 0.0 and math.isnan(r.frequency) and r.rollouts == 40
+
+
+@pytest.mark.parametrize("bad", [{"rollouts": 0}, {"refine": -1}, {"population": 1},
+                                 {"step": 0.0}])
+def test_bad_search_settings_are_refused(bad: dict) -> None:
+    with pytest.raises(ValueError, match="searched_gait"):
+        searched_gait(procedural_spec(2, "quadruped"), **{**FAST, **bad})
