@@ -26,14 +26,22 @@ METHODS = ("cma", "prior", "procedural")
 
 
 def searched(task: tuple[str, int]) -> tuple[float, int]:
-    """Searched walk speed (body lengths per second) of one robot file and the rollouts used."""
+    """Searched walk speed (body lengths per second) of one robot file and the rollouts used,
+    in the walk score's scene with its settings (the defaults of ``walk_score``: trials,
+    seconds, settle, max_tilt) and score seed 0."""
+    import inspect
+
+    from robovae.design.score import walk_score
     from robovae.envs.walk import walk_scene
     from robovae.evaluate.quality.gait_search import searched_gait
 
     path, refine = task
+    walk = {k: p.default for k, p in inspect.signature(walk_score).parameters.items()
+            if p.default is not inspect.Parameter.empty}
     _, scene = walk_scene(path)
-    r = searched_gait(scene.model, rollouts=8, refine=refine, seconds=3.0, seed=0,
-                      settle=1.0 / 3.0, max_tilt=60.0)
+    r = searched_gait(scene.model, rollouts=walk["trials"], refine=refine,
+                      seconds=walk["seconds"], seed=0, settle=walk["settle"] / walk["seconds"],
+                      max_tilt=walk["max_tilt"])
     return r.speed, r.rollouts
 
 
@@ -78,7 +86,7 @@ def main() -> None:
         + [f"CMA/{ref} in-run / searched" for ref in ("prior", "procedural")]
     rollouts = results[0][1] if results else 0
     print(f"walk speed (body lengths/s) of the {args.top} best robots per method, gaits "
-          f"searched with {rollouts} rollouts of 3 s each")
+          f"searched with {rollouts} rollouts in the walk score's scene and settings")
     print(format_table(rows, columns))
 
 if __name__ == "__main__":
