@@ -13,8 +13,9 @@ continued or finished run rewrites it the same way:
   held-out median measures it with seeds that played no part in selecting it. Kept by robot
   index, so a continued run re-scores only robots new to the top;
 - for walk, ``best/<method>/rank_<k>/gait.json``: the gait that gave the robot its score
-  (:func:`robovae.design.score.walk_gait`, score seed 0; kept in ``heldout`` as ``gait``), to
-  replay as a ``robovae/Walk-v0`` policy (:mod:`robovae.envs.gait`);
+  (:func:`robovae.design.score.walk_gait` under the score seed of :func:`gait_seed`: the run's
+  seed 0, or with several score sets the set whose best is the median; kept in ``heldout`` as
+  ``gait``), to replay as a ``robovae/Walk-v0`` policy (:mod:`robovae.envs.gait`);
 - ``convergence.png``: the best score so far against evaluations, one line per method.
 """
 
@@ -35,8 +36,8 @@ from robovae.design.score import score_robot, walk_gait
 if TYPE_CHECKING:  # the model stack stays out of the worker processes that import this module
     from robovae.model.vae import RoboVAE
 
-__all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "heldout", "heldout_todo", "plot",
-           "top_records", "write_best"]
+__all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "gait_seed", "heldout", "heldout_todo",
+           "plot", "top_records", "write_best"]
 
 METHODS = ("cma", "prior", "procedural")
 #: Score seeds of the held-out re-scoring of each method's best robots (module docstring).
@@ -52,6 +53,7 @@ class Run(Protocol):
     seed: int
     top: int
     floating: bool
+    seeds: list[int]
     model: RoboVAE
 
     def decode(self, zs: list[np.ndarray]) -> list:
@@ -73,6 +75,19 @@ def top_records(run: Run, method: str) -> list[dict]:
                   key=lambda r: (-r["score"], r["index"]))[:run.top]
 
 
+def gait_seed(record: dict, seeds: Sequence[int]) -> int:
+    """The score seed whose gait search gave ``record`` (an evaluation of a run with score
+    seeds ``seeds``) its score: the first seed, or with ``K > 1`` seeds (the record's
+    ``scores``, in ``seeds``' order) the seed whose score is the median, ``sorted(scores)[K //
+    2]`` (for even ``K`` the upper of the two middle scores, which the median averages; equal
+    scores: the earlier seed)."""
+    scores = record.get("scores")
+    if not scores or len(seeds) < 2:
+        return int(seeds[0])
+    order = sorted(range(len(scores)), key=lambda i: (scores[i], i))
+    return int(seeds[order[len(scores) // 2]])
+
+
 def _best_path(run: Run, method: str, rank: int) -> Path:
     return run.out / "best" / method / f"rank_{rank}"
 
@@ -87,27 +102,29 @@ def _cache(run: Run) -> dict[tuple[str, int], dict]:
 
 def heldout_todo(run: Run) -> list[tuple[str, int, int, bool]]:
     """(method, rank, index, whether its scores are missing) of the best robots whose
-    held-out scores, or for walk whose gait, are not in the log yet."""
+    held-out scores, or for walk whose gait (under :func:`gait_seed`), are not in the log
+    yet."""
     cache = _cache(run)
     todo = []
     for m in METHODS:
         for k, r in enumerate(top_records(run, m)):
             entry = cache.get((m, r["index"]), {})
-            if "scores" not in entry or (run.task == "walk" and "gait" not in entry):
+            gait = entry.get("gait", {}).get("score_seed") == gait_seed(r, run.seeds)
+            if "scores" not in entry or (run.task == "walk" and not gait):
                 todo.append((m, k, r["index"], "scores" not in entry))
     return todo
 
 
-def _score_seed(item: tuple[str, str, int]) -> float | dict:
-    """The score of one robot file under one score seed, or (seed None) its walking gait
-    (worker)."""
-    path, task, seed = item
-    if seed is None:
+def _score_seed(item: tuple[str, str, int, bool]) -> float | dict:
+    """The score of one robot file under one score seed, or (``gait``) its walking gait under
+    that seed (worker)."""
+    path, task, seed, gait = item
+    if gait:
         try:
-            return {**walk_gait(path), "error": None}
+            return {**walk_gait(path, seed=seed), "error": None}
         except Exception as e:  # as score_robot: a robot that cannot walk scores 0, no gait
-            return {"score": 0.0, "frequency": None, "actuators": [], "amplitude": [],
-                    "phase": [], "offset": [], "power": 0.0, "mass": None,
+            return {"score": 0.0, "score_seed": seed, "frequency": None, "actuators": [],
+                    "amplitude": [], "phase": [], "offset": [], "power": 0.0, "mass": None,
                     "error": " ".join(f"{type(e).__name__}: {e}".split())[:300]}
     return float(score_robot(path, task, seed=seed)["score"])
 
@@ -118,11 +135,13 @@ def heldout(run: Run, pool) -> dict:
     entries per method, best first."""
     seeds = list(HELDOUT_SEEDS)
     cache, todo = _cache(run), heldout_todo(run)
+    tops = {m: top_records(run, m) for m in METHODS}
     items: list[tuple] = []
     for m, k, _, scores in todo:
         path = str(_best_path(run, m, k) / "robot.xml")
-        items += [(path, run.task, s) for s in seeds] if scores else []
-        items += [(path, run.task, None)] if run.task == "walk" else []
+        items += [(path, run.task, s, False) for s in seeds] if scores else []
+        if run.task == "walk":
+            items.append((path, run.task, gait_seed(tops[m][k], run.seeds), True))
     done = iter(list(pool.map(_score_seed, items)) if pool else [_score_seed(x) for x in items])
     for m, _, i, scores in todo:
         entry = dict(cache.get((m, i), {}))
@@ -134,7 +153,7 @@ def heldout(run: Run, pool) -> dict:
     out: dict = {"seeds": seeds}
     for m in METHODS:
         out[m] = []
-        for k, r in enumerate(top_records(run, m)):
+        for k, r in enumerate(tops[m]):
             entry = cache[(m, r["index"])]
             out[m].append({"rank": k, "index": r["index"], "score": r["score"],
                            "scores": entry["scores"], "median": float(np.median(entry["scores"])),

@@ -25,6 +25,7 @@ from robovae.design.optimize import (
     optimize,
     score_seeds,
 )
+from robovae.design.results import gait_seed
 from robovae.design.score import reach_score, score_robot, walk_score
 from robovae.envs import WALK_ID
 from robovae.envs.gait import SinusoidGait, replay
@@ -353,6 +354,35 @@ def test_score_sets_score_each_robot_by_the_median_over_seeds(trained_nodes, tmp
     assert resumed["settings"]["score_seeds"] == [0]
     assert [resumed["evaluations"][m][:1] for m in METHODS] == \
         [old["evaluations"][m] for m in METHODS]
+
+
+def test_gait_seed_is_the_set_that_gives_the_median():
+    assert gait_seed({"score": 0.4}, [0]) == 0
+    assert gait_seed({"score": 0.5, "scores": [0.9, 0.5, 0.1]}, [0, 9, 10]) == 9
+    assert gait_seed({"score": 0.2, "scores": [0.2, 0.2, 0.7]}, [0, 9, 10]) == 9
+    # even K: the median averages the middle two; the gait is the upper one's
+    assert gait_seed({"score": 0.35, "scores": [0.1, 0.3, 0.4, 0.9]}, [0, 9, 10, 11]) == 10
+
+
+def test_walk_gait_with_score_sets_is_the_median_sets(trained_nodes, tmp_path):
+    """With three score sets a robot's walk score is the median of three searches; its
+    gait.json is the search that scored the median (a gait that walks at the logged score), and
+    a finished run keeps it."""
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "sets"
+    optimize(ckpt, "walk", 1, out, seed=0, jobs=1, top=1, progress=False, score_sets=3)
+    log = json.loads((out / "log.json").read_text())
+    moved = 0
+    for m in METHODS:
+        h, r = log["heldout"][m][0], log["evaluations"][m][0]
+        g = json.loads((out / "best" / m / "rank_0" / "gait.json").read_text())
+        assert g == h["gait"] and g["score_seed"] == gait_seed(r, [0, 9, 10])
+        assert g["score"] == r["score"] == np.median(r["scores"])
+        moved += g["score_seed"] != 0
+    assert moved  # seed 0's search is not the median's for every robot
+    before = (out / "log.json").read_text()
+    optimize(ckpt, "walk", 1, out, seed=0, jobs=1, top=1, progress=False, score_sets=3)
+    assert (out / "log.json").read_text() == before
 
 
 def test_unfinished_decodings_score_zero_and_prior_samples_redraw(trained_nodes, tmp_path):
