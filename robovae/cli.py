@@ -148,7 +148,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
                      seed=args.seed, max_samples=args.max_samples,
                      entropy_seconds=args.entropy_seconds, quality=args.quality,
                      procedural=args.procedural, real=args.real, locomotion=args.locomotion,
-                     sheets=args.sheets)
+                     sheets=args.sheets, gait_search=args.gait_search,
+                     gait_rollouts=args.gait_rollouts)
     print(format_report(result))
     if args.json:
         print(f"json: {save_json(result, args.json)}")
@@ -297,7 +298,12 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--procedural", type=int, default=200, help="procedural robots compared")
     a.add_argument("--real", help="folder of real robots (default ../shared/menagerie)")
     a.add_argument("--locomotion", action="store_true",
-                   help="also measure gait speed (64 rollouts of 4 s per robot: slow)")
+                   help="also measure gait speed (--gait-rollouts of 4 s per robot: slow)")
+    a.add_argument("--gait-search", default="random",
+                   help="gait speed: 'random' open-loop gaits, or 'cma': the best of a quarter "
+                   "of the budget tuned by CMA-ES")
+    a.add_argument("--gait-rollouts", type=int, default=64,
+                   help="gait speed: rollouts per robot (default 64)")
     a.add_argument("--sheets", help="write quality contact sheets (PNG) into this folder")
     a.set_defaults(func=cmd_analyze)
     for name in LIGHTNING_COMMANDS:

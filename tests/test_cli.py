@@ -85,9 +85,19 @@ def test_render_counts_must_be_positive(option, tmp_path, capsys) -> None:
     assert not (tmp_path / "s.png").exists()
 
 
+def test_analyze_gait_search_is_checked_first(tmp_path, capsys) -> None:
+    argv = ["analyze", "--ckpt", str(tmp_path / "none.ckpt"), "--samples", str(tmp_path),
+            "--root", str(tmp_path / "cache"), "--gait-search", "grid"]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == ("robovae: --gait-search must be one of random, cma, not "
+                                       "'grid'\n")
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("option, value, least", [
     ("--max-samples", "0", 1), ("--max-samples", "-2", 1), ("--quality", "-1", 0),
     ("--behaviour", "-1", 0), ("--permutations", "-5", 0), ("--procedural", "-1", 0),
+    ("--gait-rollouts", "0", 1),
 ])
 def test_analyze_counts_are_checked_first(option, value, least, tmp_path, capsys) -> None:
     argv = ["analyze", "--ckpt", str(tmp_path / "none.ckpt"), "--samples", str(tmp_path),

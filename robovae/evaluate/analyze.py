@@ -51,6 +51,7 @@ from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
 from robovae.evaluate.descriptors import DESCRIPTORS, descriptors, robot_category
 from robovae.evaluate.population import compare, latent_stats, summary
+from robovae.evaluate.quality.gait_search import GAIT_SEARCHES
 from robovae.evaluate.quality.measure import measure_many
 from robovae.evaluate.quality.populations import (
     HOLDOUT_SEED,
@@ -192,7 +193,8 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
             behaviour: int = 100, jobs: int = 1, permutations: int = 200, seed: int = 0,
             max_samples: int | None = None, entropy_seconds: float = 3.0, quality: int = 0,
             procedural: int = 200, real: str | Path | None = None, locomotion: bool = False,
-            sheets: str | Path | None = None, progress: bool = True) -> dict:
+            sheets: str | Path | None = None, progress: bool = True,
+            gait_search: str = "random", gait_rollouts: int = 64) -> dict:
     """The statistical view of a checkpoint and (optionally) a folder of its samples.
 
     Args:
@@ -209,7 +211,11 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         quality: quality measures on at most this many robots per population (0: none).
         procedural: procedural robots in the quality table (0: none).
         real: folder of real robots (default ``../shared/menagerie``; absent: none).
-        locomotion: also the gait-speed measure (64 rollouts of 4 s per robot).
+        locomotion: also the gait-speed measure (``gait_rollouts`` rollouts of 4 s per robot).
+        gait_search: the gait-speed measure's search, ``"random"`` gaits or ``"cma"`` (random
+            gaits tuned by CMA-ES at the same budget:
+            :func:`~robovae.evaluate.quality.gait_search.budget_gait`).
+        gait_rollouts: the gait-speed measure's budget, rollouts per robot.
         sheets: folder for the quality contact sheets (None: none).
         progress: progress bars of the quality measures.
 
@@ -222,6 +228,10 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     start = time.perf_counter()
     _check_counts(behaviour=behaviour, jobs=jobs, permutations=permutations, quality=quality,
                   procedural=procedural, max_samples=max_samples, entropy_seconds=entropy_seconds)
+    check_count("--gait-rollouts", gait_rollouts, 1)
+    if gait_search not in GAIT_SEARCHES:
+        raise RobovaeError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
+                           f"not {gait_search!r}")
     files = sample_files(samples) if samples is not None else []  # checked first
     if samples is not None and not files:
         raise RobovaeError(f"robovae: {samples}: no robot to analyse (no robot_*/robot.xml or "
@@ -276,11 +286,14 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         # one pool for the four populations: a worker spends seconds on its imports
         with process_pool(workers) if workers > 1 else nullcontext() as pool:
             pops = {k: measure_many(files, jobs=workers, progress=progress, desc=k, names=names,
-                                    pool=pool, locomotion=locomotion)
+                                    pool=pool, locomotion=locomotion, gait_search=gait_search,
+                                    gait_kw={"rollouts": gait_rollouts})
                     for k, (files, names) in groups.items() if files}
         rows, cols, numbers = quality_table(pops, seed=seed)
         result["quality"] = {"populations": pops, "table": rows, "columns": cols,
                              "numbers": numbers}
+        if locomotion:
+            result["quality"]["gait"] = {"search": gait_search, "rollouts": gait_rollouts}
         if sheets is not None:
             result["quality"]["sheets"] = [str(p) for p in contact_sheets(pops, sheets)]
     result["seconds"] = time.perf_counter() - start
@@ -415,6 +428,11 @@ def format_report(result: dict) -> str:
                   "parent; symmetric: limbs in mirrored pairs within 10 %; standing: 3 s "
                   "joints held at rest; W1 to the training corpus)",
                   format_table(q["table"], q["columns"])]
+        if "gait" in q:
+            how = "random gaits" if q["gait"]["search"] == "random" else \
+                "random gaits tuned by CMA-ES"
+            lines.append(f"gait speed: best of {q['gait']['rollouts']} open-loop rollouts of 4 s "
+                         f"({how}), forward speed over the extent")
         lines += [f"contact sheet: {p}" for p in q.get("sheets", [])]
     lines.append(f"\n({result['seconds']:.1f} s)")
     return "\n".join(lines)

@@ -23,6 +23,7 @@ from robovae.evaluate.analyze import (
     training_graphs,
 )
 from robovae.evaluate.descriptors import DESCRIPTORS
+from robovae.evaluate.quality.gait_search import budget_gait
 from robovae.evaluate.quality.symmetry import anatomy
 
 ZOO = dict(zoo_files()[0])
@@ -133,6 +134,23 @@ def test_analyze_with_samples(trained, proc_samples) -> None:
     capped = analyze(ckpt, samples=proc_samples, root=ckpt.parent / "cache", behaviour=0,
                      permutations=0, max_samples=2)
     assert capped["samples"]["robots"] == 2 and "behaviour" not in capped["samples"]
+
+
+def test_analyze_locomotion_with_tuned_gaits(trained, proc_samples) -> None:
+    """``--locomotion --gait-search cma --gait-rollouts N``: every population's gait speed is
+    the CMA-ES search at that budget, and the report says which search it was."""
+    _, _, ckpt = trained
+    res = analyze(ckpt, samples=proc_samples, root=ckpt.parent / "cache", behaviour=0,
+                  permutations=0, quality=1, procedural=0, real=proc_samples / "none", jobs=1,
+                  progress=False, locomotion=True, gait_search="cma", gait_rollouts=24)
+    q = res["quality"]
+    assert q["gait"] == {"search": "cma", "rollouts": 24}
+    sample = q["populations"]["samples"][0]
+    path = proc_samples / "robot_000000" / "robot.xml"
+    assert sample["gait_speed"] == budget_gait(str(path), "cma", rollouts=24).speed > 0
+    assert all("gait_speed" in r for pop in q["populations"].values() for r in pop)
+    assert "best of 24 open-loop rollouts of 4 s (random gaits tuned by CMA-ES)" in \
+        format_report(res)
 
 
 def test_analyze_of_a_folder_without_robots_is_a_one_line_error(trained, tmp_path,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robovae.data.procedural import procedural_spec
-from robovae.evaluate.quality.gait_search import searched_gait
+from robovae.evaluate.quality.gait_search import budget_gait, searched_gait
 from robovae.evaluate.quality.locomotion import GaitTrials, gait
 
 FAST = {"rollouts": 8, "seconds": 2.0}
@@ -55,3 +55,22 @@ def test_a_robot_without_actuators_has_no_gait_to_search() -> None:
 def test_bad_search_settings_are_refused(bad: dict) -> None:
     with pytest.raises(ValueError, match="searched_gait"):
         searched_gait(procedural_spec(2, "quadruped"), **{**FAST, **bad})
+
+
+def test_a_budget_is_spent_by_random_gaits_or_by_a_quarter_of_them_tuned() -> None:
+    """``budget_gait``: ``random`` is the random search; ``cma`` draws a quarter of the
+    budget at random (the random search's first gaits) and tunes in generations of 16, never
+    past the budget."""
+    quad = procedural_spec(2, "quadruped")
+    drawn = gait(quad, rollouts=40, seconds=2.0)
+    same = budget_gait(quad, "random", rollouts=40, seconds=2.0)
+    assert same.speed == drawn.speed and same.rollouts == 40
+    tuned = budget_gait(quad, "cma", rollouts=40, seconds=2.0)
+    assert tuned.rollouts == 10 + 16 * 1  # 30 left: one generation, 14 unspent
+    assert tuned.speed >= gait(quad, rollouts=10, seconds=2.0).speed
+    assert tuned.speed == searched_gait(quad, rollouts=10, refine=30, seconds=2.0).speed
+    few = budget_gait(quad, "cma", rollouts=3, seconds=2.0)
+    assert few.rollouts == 1 and few.speed == gait(quad, rollouts=1, seconds=2.0).speed
+    for bad in ({"search": "grid"}, {"rollouts": 0}):
+        with pytest.raises(ValueError, match="budget_gait"):
+            budget_gait(quad, **{"seconds": 2.0, **bad})

@@ -11,7 +11,8 @@ them (``robovae generate`` stages the model its validator compiled:
 - :func:`~robovae.evaluate.quality.standing.standing` → ``StandResult`` (``.stands``);
 - :func:`~robovae.evaluate.quality.locomotion.gait_speed` → float, extents/s
   (:func:`~robovae.evaluate.quality.locomotion.gait` → ``GaitResult``; the same gaits tuned
-  to the body by CMA-ES: :func:`~robovae.evaluate.quality.gait_search.searched_gait`);
+  to the body by CMA-ES: :func:`~robovae.evaluate.quality.gait_search.searched_gait`; either
+  at a fixed budget of rollouts: :func:`~robovae.evaluate.quality.gait_search.budget_gait`);
 - :func:`~robovae.evaluate.quality.attachment.attachment` → ``AttachResult``
   (``.all_attached``, ``.detached_share``, ``.penetration``);
 - :func:`~robovae.evaluate.quality.symmetry.anatomy` → ``Anatomy`` (``.symmetric``,
@@ -23,12 +24,12 @@ split-half reference, k-NN precision/recall) and :mod:`~robovae.evaluate.quality
 """
 
 from robovae.evaluate.quality.attachment import AttachResult, attachment
-from robovae.evaluate.quality.gait_search import searched_gait
+from robovae.evaluate.quality.gait_search import GAIT_SEARCHES, budget_gait, searched_gait
 from robovae.evaluate.quality.locomotion import GaitResult, actuated_base, gait, gait_speed
 from robovae.evaluate.quality.stage import Stage, rest_pose, stage, stage_compiled
 from robovae.evaluate.quality.standing import StandResult, standing
 from robovae.evaluate.quality.symmetry import Anatomy, anatomy
 
-__all__ = ["Anatomy", "AttachResult", "GaitResult", "StandResult", "Stage", "actuated_base",
-           "anatomy", "attachment", "gait", "gait_speed", "rest_pose", "searched_gait", "stage",
-           "stage_compiled", "standing"]
+__all__ = ["GAIT_SEARCHES", "Anatomy", "AttachResult", "GaitResult", "StandResult", "Stage",
+           "actuated_base", "anatomy", "attachment", "budget_gait", "gait", "gait_speed",
+           "rest_pose", "searched_gait", "stage", "stage_compiled", "standing"]

@@ -18,6 +18,12 @@ objective is the same speed, fall, flight and divergence rules as :func:`gait` (
 :class:`~robovae.evaluate.quality.locomotion.GaitTrials`); the result is the best gait of all
 rollouts, ``GaitResult.rollouts`` counting all of them. Deterministic for a robot and
 ``seed``.
+
+:func:`budget_gait` is the locomotion measure's search (``robovae analyze --locomotion
+--gait-search random|cma --gait-rollouts N``) at a fixed budget of ``N`` rollouts: ``random``
+is :func:`gait`; ``cma`` spends a quarter of the budget on random gaits and the rest on CMA-ES
+generations of 16 (``N = 64``: 16 random gaits, then 3 generations), never more rollouts
+than ``N``.
 """
 
 from __future__ import annotations
@@ -25,13 +31,17 @@ from __future__ import annotations
 import numpy as np
 from cmaes import CMA
 
-from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, random_gaits
+from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, gait, random_gaits
 from robovae.evaluate.quality.stage import Robot
 
-__all__ = ["searched_gait"]
+__all__ = ["GAIT_SEARCHES", "budget_gait", "searched_gait"]
 
 #: Bound of the phases, in turns: the search needs bounds, a phase is periodic.
 _PHASE_TURNS = 10.0
+#: The searches :func:`budget_gait` knows.
+GAIT_SEARCHES = ("random", "cma")
+#: :func:`budget_gait`'s CMA-ES population.
+_BUDGET_POPULATION = 16
 
 
 def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: float = 4.0,
@@ -88,3 +98,23 @@ def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: 
     power = trials.power(run) if speed > 0 else 0.0
     return trials.result(speed, freq_best, amp_best, phase_best, offset_best, unstable,
                          rollouts + generations * population, power)
+
+
+def budget_gait(robot: Robot, search: str = "random", rollouts: int = 64, **kw) -> GaitResult:
+    """The best gait of at most ``rollouts`` rollouts found by ``search`` (module docstring):
+    ``"random"``, :func:`~robovae.evaluate.quality.locomotion.gait`; ``"cma"``,
+    :func:`searched_gait` with ``max(1, rollouts // 4)`` random gaits and the rest in CMA-ES
+    generations of 16 (a remainder below 16 unspent). ``kw``: the other arguments of either
+    (``seconds``, ``seed``, ``frequency``, ``settle``, ``max_steps``, ``max_tilt``).
+
+    Raises:
+        ValueError: an unknown ``search`` or ``rollouts`` below 1.
+    """
+    if search not in GAIT_SEARCHES or rollouts < 1:
+        raise ValueError(f"budget_gait: search must be one of {', '.join(GAIT_SEARCHES)} "
+                         f"(got {search!r}) and rollouts >= 1 (got {rollouts})")
+    if search == "random":
+        return gait(robot, rollouts=rollouts, **kw)
+    first = max(1, rollouts // 4)
+    return searched_gait(robot, rollouts=first, refine=rollouts - first,
+                         population=_BUDGET_POPULATION, **kw)

@@ -15,7 +15,9 @@ model, :func:`~robovae.evaluate.quality.stage.stage_compiled`), and runs on that
 - ``floating``, ``stands``, ``fell_at``, ``stand_tilt``: the standing test
   (:mod:`~robovae.evaluate.quality.standing`; ``stands`` None when not floating);
 - ``gait_speed`` (extents/s), ``gait_speed_m_s``: with ``locomotion``, the best gait
-  (:mod:`~robovae.evaluate.quality.locomotion`);
+  (:mod:`~robovae.evaluate.quality.locomotion`; random gaits, or with ``gait_search="cma"``
+  tuned by CMA-ES at the same budget:
+  :func:`~robovae.evaluate.quality.gait_search.budget_gait`);
 - ``d_<descriptor>``: graph descriptors (``VECTOR_DESCRIPTORS`` of
   :mod:`robovae.evaluate.descriptors`, ``paper34`` graph of the model);
 - ``t_<measure>``: seconds each measure took.
@@ -37,7 +39,7 @@ import mujoco
 
 from robovae.data.workers import process_pool
 from robovae.evaluate.quality.attachment import attachment
-from robovae.evaluate.quality.locomotion import gait
+from robovae.evaluate.quality.gait_search import budget_gait
 from robovae.evaluate.quality.stage import Robot, Stage, prepare, stage
 from robovae.evaluate.quality.standing import HeldRun, standing
 from robovae.evaluate.quality.symmetry import anatomy
@@ -59,10 +61,11 @@ def _timed(out: dict, key: str, fn, *args, **kwargs):
 
 def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
             gait_kw: dict | None = None, stand_kw: dict | None = None,
-            name: str | None = None, held: HeldRun | None = None) -> dict:
+            name: str | None = None, held: HeldRun | None = None,
+            gait_search: str = "random") -> dict:
     """The quality record of one robot file, spec, model with a floor or stage (module
     docstring). ``gait_kw`` and ``stand_kw`` are passed to
-    :func:`~robovae.evaluate.quality.locomotion.gait` and
+    :func:`~robovae.evaluate.quality.gait_search.budget_gait` (with ``gait_search``) and
     :func:`~robovae.evaluate.quality.standing.standing`; ``name`` defaults to the spec's model
     name or the file stem (the folder for ``robot_<i>/robot.xml``), ``""`` for a model.
     ``held``: the standing test's simulation of ``robot`` (a stage) already begun by the
@@ -104,7 +107,7 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
             d = _timed(out, "descriptors", lambda: descriptors(model_to_graph(model)))
             out.update({f"d_{k}": d[k] for k in VECTOR_DESCRIPTORS})
         if locomotion:
-            g = _timed(out, "gait", gait, st, **(gait_kw or {}))
+            g = _timed(out, "gait", budget_gait, st, gait_search, **(gait_kw or {}))
             out.update(gait_speed=g.speed, gait_speed_m_s=g.speed_m_s)
     except Exception as e:  # noqa: BLE001 - one bad robot must not stop a population
         out["error"] = " ".join(f"{type(e).__name__}: {e}".split())
