@@ -35,6 +35,9 @@ def test_measure_records_every_measure_and_errors_in_one_line(tmp_path) -> None:
     assert (ant["limbs"], ant["bodies"], ant["dof"]) == (4, 13, 14)
     assert ant["d_limbs"] == 4 and ant["gait_speed"] > 0
     assert hexapod["limbs"] == 6 and hexapod["pairs"] == 3
+    # rolling told from stepping: a motor on a hinge without limits makes a robot wheeled
+    assert ant["wheeled"] is False and hexapod["wheeled"] is False
+    assert measure(procedural_spec(0, "mobile_manipulator"), describe=False)["wheeled"] is True
     assert all(ant[f"t_{k}"] >= 0 for k in ("load", "anatomy", "attachment", "standing"))
     compact = robot_quality(procedural_spec(0, "hexapod"))
     assert set(compact) == set(QUALITY_KEYS)
@@ -68,6 +71,11 @@ def test_summary_shares_leave_errors_out() -> None:
     assert s["detached_share"] == 0.25 and s["self_penetrating"] == 0.5
     assert s["floating"] == 1 and s["standing"] == 1.0 and s["mean_limbs"] == 2.5
     assert math.isnan(s["gait_speed"]) and math.isnan(summarize([])["standing"])
+    assert math.isnan(s["wheeled"])  # not measured
+    speeds = summarize([{"wheeled": w, "gait_speed": v}
+                        for w, v in ((False, 0.4), (True, 0.1), (False, 0.6), (True, 0.2))])
+    assert speeds["wheeled"] == 0.5 and speeds["gait_speed"] == pytest.approx(0.3)
+    assert speeds["gait_speed_legged"] == pytest.approx(0.5)
 
 
 def test_populations_measured_in_one_pool_as_in_this_process(tmp_path) -> None:

@@ -8,7 +8,9 @@ model, :func:`~robovae.evaluate.quality.stage.stage_compiled`), and runs on that
 
 - ``bodies``, ``dof``, ``mass``, ``limbs``: counts
   (:func:`~robovae.evaluate.quality.symmetry.anatomy`); ``pairs``, ``symmetric``,
-  ``one_limb``: mirrored limb pairs;
+  ``one_limb``: mirrored limb pairs; ``wheeled``: an actuator drives a hinge without limits
+  (a wheel or rotor: :func:`~robovae.evaluate.quality.locomotion.continuous_actuators`), so
+  that a gait speed can be told rolling from stepping;
 - ``judged``, ``detached``, ``all_attached``, ``detached_share``: bodies judged / detached
   (:mod:`~robovae.evaluate.quality.attachment`); ``penetration``: deepest self-penetration at
   rest over the extent; ``self_penetrating``: a contact deeper than 1 % of the extent;
@@ -40,6 +42,7 @@ import mujoco
 from robovae.data.workers import process_pool
 from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.quality.gait_search import budget_gait
+from robovae.evaluate.quality.locomotion import continuous_actuators
 from robovae.evaluate.quality.stage import Robot, Stage, prepare, stage
 from robovae.evaluate.quality.standing import HeldRun, standing
 from robovae.evaluate.quality.symmetry import anatomy
@@ -88,7 +91,8 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
         model = st.model
         a = _timed(out, "anatomy", anatomy, st)
         out.update(bodies=a.bodies, dof=a.dof, mass=a.mass, limbs=a.limbs, pairs=a.pairs,
-                   symmetric=a.symmetric, one_limb=a.one_limb, extent=st.extent)
+                   symmetric=a.symmetric, one_limb=a.one_limb, extent=st.extent,
+                   wheeled=bool(continuous_actuators(model).any()))
         at = _timed(out, "attachment", attachment, st)
         out.update(judged=at.bodies, detached=at.detached, all_attached=at.all_attached,
                    detached_share=at.detached_share, penetration=at.penetration / at.extent,

@@ -6,7 +6,9 @@ several populations in columns (``samples``, ``training corpus``, ``procedural``
 robots`` ...) with one row per measure, comparing each with the training corpus:
 
 - shares: all bodies attached, mean detached share, self-penetrating, symmetric, one limb on
-  the root, standing (of the floating-base robots), median gait speed (extents/s);
+  the root, wheeled (a motor on a hinge without limits), standing (of the floating-base
+  robots), median gait speed (extents/s) of all robots and of those not wheeled (stepping, not
+  rolling);
 - ``W1 <count>``: 1-D Wasserstein distance (:mod:`~robovae.evaluate.quality.distribution`)
   of limbs, bodies, DoF and total mass (kg) to the training corpus; the corpus column holds
   its own split-half distance, the reference a population near the corpus should approach;
@@ -56,14 +58,17 @@ def summarize(rows: Sequence[dict]) -> dict:
     ok = _ok(rows)
     floating = [r for r in ok if r.get("floating")]
     speeds = _values(ok, "gait_speed")
+    legged = _values([r for r in ok if r.get("wheeled") is False], "gait_speed")
     detached = _values(ok, "detached_share")
     return {"robots": len(rows), "errors": len(rows) - len(ok),
             "all_attached": _share(ok, "all_attached"),
             "detached_share": float(detached.mean()) if detached.size else math.nan,
             "self_penetrating": _share(ok, "self_penetrating"),
             "symmetric": _share(ok, "symmetric"), "one_limb": _share(ok, "one_limb"),
+            "wheeled": _share(ok, "wheeled"),
             "floating": len(floating), "standing": _share(floating, "stands"),
             "gait_speed": float(np.median(speeds)) if speeds.size else math.nan,
+            "gait_speed_legged": float(np.median(legged)) if legged.size else math.nan,
             **{f"mean_{k}": (float(_values(ok, k).mean()) if _values(ok, k).size else math.nan)
                for k in COUNTS}}
 
@@ -121,8 +126,10 @@ def quality_table(populations: Mapping[str, Sequence[dict]], corpus: str = "trai
             ("self-penetrating at rest", "self_penetrating", "{:.0%}"),
             ("symmetric (mirrored limb pairs)", "symmetric", "{:.0%}"),
             ("one limb on the root", "one_limb", "{:.0%}"),
+            ("wheeled (motor on a hinge without limits)", "wheeled", "{:.0%}"),
             ("standing (of floating base)", "standing", "{:.0%}"),
             ("gait speed median (extents/s)", "gait_speed", "{:.3f}"),
+            ("gait speed median, not wheeled", "gait_speed_legged", "{:.3f}"),
             *[(f"W1 {k} (corpus: split-half)", f"w1_{k}", "{:.3g}") for k in COUNTS],
             ("precision vs corpus", "precision_corpus", "{:.0%}"),
             ("recall vs corpus", "recall_corpus", "{:.0%}"),
