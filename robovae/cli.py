@@ -113,10 +113,13 @@ def cmd_optimize(args: argparse.Namespace) -> int:
              f"{res[m]['heldout_best']:.4f} ({res[m]['heldout_best_rank']})"}
             for m in METHODS]
     power = "best's W/kg"  # walk: mechanical power of the best robot's scoring gait per kg
+    wheeled = "top wheeled"  # walk: top robots with a motor on an unlimited hinge (may roll)
     for m, row in zip(METHODS, rows):
         row[power] = "" if res[m].get("power_per_kg") is None else f"{res[m]['power_per_kg']:.0f}"
+        row[wheeled] = "" if res[m].get("top_wheeled") is None else \
+            f"{res[m]['top_wheeled']}/{res[m]['top_robots']}"
     columns = ["method", "evaluations", "best", "best index", held, pick]
-    print(format_table(rows, columns + ([power] if args.task == "walk" else [])))
+    print(format_table(rows, columns + ([power, wheeled] if args.task == "walk" else [])))
     print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
     if args.task == "walk":  # robovae.design.results
         print(f"each best robot's gait: {args.out}/best/<method>/rank_<k>/gait.json "

@@ -384,8 +384,9 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         ``heldout_best_rank`` (the largest such median among the ``top`` best robots, and that
         robot's rank: the pick of a user who wants the robot that does the task best, not the
         one whose gaits were luckiest), for walk ``power_per_kg`` (the best robot's scoring
-        gait: mean mechanical power over its mass, W/kg; else None); plus ``out``, ``log``,
-        ``plot``.
+        gait: mean mechanical power over its mass, W/kg; else None) and ``top_wheeled`` (how
+        many of the ``top`` best robots have a motor on a hinge without limits, and so may roll
+        rather than step; else None) of ``top_robots``; plus ``out``, ``log``, ``plot``.
 
     Raises:
         RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
@@ -448,5 +449,9 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         gait = (held[m][0].get("gait") or {}) if held[m] else {}  # walk: the best's gait
         summary[m]["power_per_kg"] = gait["power"] / gait["mass"] \
             if gait.get("power") is not None and gait.get("mass") else None
+        # walk: how many of the top robots have a motor on a hinge without limits (may roll)
+        wheels = [h["gait"].get("wheeled") for h in held[m] if "gait" in h]
+        summary[m]["top_wheeled"] = sum(w is True for w in wheels) if wheels else None
+        summary[m]["top_robots"] = len(held[m])
     png = plot(run, out / "convergence.png")
     return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(png)}

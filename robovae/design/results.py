@@ -109,7 +109,8 @@ def heldout_todo(run: Run) -> list[tuple[str, int, int, bool]]:
     for m in METHODS:
         for k, r in enumerate(top_records(run, m)):
             entry = cache.get((m, r["index"]), {})
-            gait = entry.get("gait", {}).get("score_seed") == gait_seed(r, run.seeds)
+            found = entry.get("gait", {})  # logs before 2026-11-28 lack the seed or "wheeled"
+            gait = found.get("score_seed") == gait_seed(r, run.seeds) and "wheeled" in found
             if "scores" not in entry or (run.task == "walk" and not gait):
                 todo.append((m, k, r["index"], "scores" not in entry))
     return todo
@@ -123,7 +124,8 @@ def _score_seed(item: tuple[str, str, int, bool]) -> float | dict:
         try:
             return {**walk_gait(path, seed=seed), "error": None}
         except Exception as e:  # as score_robot: a robot that cannot walk scores 0, no gait
-            return {"score": 0.0, "score_seed": seed, "frequency": None, "actuators": [],
+            return {"score": 0.0, "score_seed": seed, "wheeled": None, "frequency": None,
+                    "actuators": [],
                     "amplitude": [], "phase": [], "offset": [], "power": 0.0, "mass": None,
                     "error": " ".join(f"{type(e).__name__}: {e}".split())[:300]}
     return float(score_robot(path, task, seed=seed)["score"])

@@ -48,7 +48,7 @@ import mujoco
 import numpy as np
 
 from robovae.data.loading import quiet_forward
-from robovae.evaluate.quality.locomotion import GaitResult, gait
+from robovae.evaluate.quality.locomotion import GaitResult, continuous_actuators, gait
 
 __all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_gait",
            "walk_score"]
@@ -86,7 +86,8 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
               settle: float = 1.0, max_tilt: float = 60.0) -> dict:
     """The gait that gives :func:`walk_score` (same arguments) its score, as JSON-ready
     numbers: ``score``, ``speed``, ``extent``, ``power``, ``mass``, ``seconds``, ``settle``,
-    ``max_tilt``, the ``score_seed``, and the gait itself, ``frequency`` (Hz), ``amplitude``,
+    ``max_tilt``, the ``score_seed``, ``wheeled`` (a motor drives a hinge without limits: the
+    robot may roll rather than step), and the gait itself, ``frequency`` (Hz), ``amplitude``,
     ``phase`` and ``offset`` per actuator in the model's order (``actuators``: their names). In
     ``robovae/Walk-v0``'s normalised actions it is ``a(t) = clip(B + A sin(2 pi f t + phi), -1,
     1)`` (:class:`robovae.envs.gait.SinusoidGait`); a robot that scores 0 has no gait (``frequency``
@@ -96,6 +97,7 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]
     return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent, "score_seed": seed,
             "power": g.power, "mass": g.mass,
+            "wheeled": bool(continuous_actuators(model).any()),
             "trials": trials, "seconds": seconds, "settle": settle, "max_tilt": max_tilt,
             "frequency": g.frequency if moves else None,
             "actuators": names if moves else [],

@@ -30,7 +30,7 @@ from robovae.design.score import reach_score, score_robot, walk_score
 from robovae.envs import WALK_ID
 from robovae.envs.gait import SinusoidGait, replay
 from robovae.envs.walk import walk_scene
-from robovae.evaluate.quality.locomotion import gait
+from robovae.evaluate.quality.locomotion import continuous_actuators, gait
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.writer import write_robot
 from robovae.model.prior import unfinished
@@ -180,6 +180,14 @@ def test_optimize_walk_with_workers(trained_nodes, tmp_path, capsys, monkeypatch
         assert (g0["power"] > 0) == (g0["score"] > 0)
         if g0["error"] is None:  # a robot that cannot walk (no actuators) has no mass logged
             assert g0["mass"] > 0 and cells[k + 1] == f"{g0['power'] / g0['mass']:.0f}"
+        # and how many of the top robots may roll: a motor on a hinge without limits
+        for h in held[m]:
+            robot = mujoco.MjModel.from_xml_path(
+                str(out / "best" / m / f"rank_{h['rank']}" / "robot.xml"))
+            assert h["gait"]["wheeled"] == (bool(continuous_actuators(robot).any())
+                                            if h["gait"]["error"] is None else None)
+        wheeled = sum(h["gait"]["wheeled"] is True for h in held[m])
+        assert cells[-1] == f"{wheeled}/{len(held[m])}"
     walker = held["procedural"][0]  # the humanoid: its score depends on the gaits drawn
     path = out / "best" / "procedural" / "rank_0" / "robot.xml"
     assert walker["scores"][:2] == [score_robot(path, "walk", seed=s)["score"] for s in (1, 2)]
