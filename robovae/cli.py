@@ -3,7 +3,7 @@
 ``robovae data``       build a dataset and print one row per robot;
 ``robovae generate``   sample robots from a checkpoint, write MJCF, validate, report;
 ``robovae interpolate`` robots on the latent line between two robots, with a contact sheet;
-``robovae optimize``   CMA-ES over the latent space for walk / stand / reach, with baselines;
+``robovae optimize``   CMA-ES over the latent space for walk / step / stand / reach, with baselines;
 ``robovae render``     PNG contact sheets and original-vs-reconstruction pictures;
 ``robovae analyze``    statistics of the design space: descriptors, KL/MMD/coverage, latent
                        entropy, MuJoCo state entropy and standing test;
@@ -119,9 +119,10 @@ def cmd_optimize(args: argparse.Namespace) -> int:
         row[wheeled] = "" if res[m].get("top_wheeled") is None else \
             f"{res[m]['top_wheeled']}/{res[m]['top_robots']}"
     columns = ["method", "evaluations", "best", "best index", held, pick]
-    print(format_table(rows, columns + ([power, wheeled] if args.task == "walk" else [])))
+    gaits = args.task in ("walk", "step")  # robovae.design.score.GAIT_TASKS
+    print(format_table(rows, columns + ([power, wheeled] if gaits else [])))
     print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
-    if args.task == "walk":  # robovae.design.results
+    if gaits:  # robovae.design.results
         print(f"each best robot's gait: {args.out}/best/<method>/rank_<k>/gait.json "
               "(replay in robovae/Walk-v0: robovae.envs.gait)")
     return 0
@@ -244,10 +245,11 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--sheet", action=argparse.BooleanOptionalAction, default=True,
                    help="render the contact sheet sheet.png (MUJOCO_GL=egl off-screen)")
     i.set_defaults(func=cmd_interpolate)
-    o = sub.add_parser("optimize", help="CMA-ES over the latent space for a task (walk, stand, "
-                       "reach), against random prior samples and procedural robots")
+    o = sub.add_parser("optimize", help="CMA-ES over the latent space for a task (walk, step, "
+                       "stand, reach), against random prior samples and procedural robots")
     o.add_argument("--ckpt", required=True, help="Lightning checkpoint (e.g. last.ckpt)")
-    o.add_argument("--task", required=True, help="walk | stand | reach")
+    o.add_argument("--task", required=True,
+                   help="walk | step (walk, wheeled robots score 0) | stand | reach")
     o.add_argument("--budget", type=int, required=True,
                    help="robot evaluations per method (CMA-ES, prior, procedural)")
     o.add_argument("--out", required=True, help="output folder (re-running continues its log)")

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from robovae.design.score import score_robot, walk_gait
+from robovae.design.score import GAIT_TASKS, Wheeled, score_robot, walk_gait
 
 if TYPE_CHECKING:  # the model stack stays out of the worker processes that import this module
     from robovae.model.vae import RoboVAE
@@ -111,7 +111,7 @@ def heldout_todo(run: Run) -> list[tuple[str, int, int, bool]]:
             entry = cache.get((m, r["index"]), {})
             found = entry.get("gait", {})  # logs before 2026-11-28 lack the seed or "wheeled"
             gait = found.get("score_seed") == gait_seed(r, run.seeds) and "wheeled" in found
-            if "scores" not in entry or (run.task == "walk" and not gait):
+            if "scores" not in entry or (run.task in GAIT_TASKS and not gait):
                 todo.append((m, k, r["index"], "scores" not in entry))
     return todo
 
@@ -122,9 +122,10 @@ def _score_seed(item: tuple[str, str, int, bool]) -> float | dict:
     path, task, seed, gait = item
     if gait:
         try:
-            return {**walk_gait(path, seed=seed), "error": None}
+            return {**walk_gait(path, seed=seed, step=task == "step"), "error": None}
         except Exception as e:  # as score_robot: a robot that cannot walk scores 0, no gait
-            return {"score": 0.0, "score_seed": seed, "wheeled": None, "frequency": None,
+            return {"score": 0.0, "score_seed": seed, "wheeled": True if isinstance(e, Wheeled)
+                    else None, "frequency": None,
                     "actuators": [],
                     "amplitude": [], "phase": [], "offset": [], "power": 0.0, "mass": None,
                     "error": " ".join(f"{type(e).__name__}: {e}".split())[:300]}
@@ -142,14 +143,14 @@ def heldout(run: Run, pool) -> dict:
     for m, k, _, scores in todo:
         path = str(_best_path(run, m, k) / "robot.xml")
         items += [(path, run.task, s, False) for s in seeds] if scores else []
-        if run.task == "walk":
+        if run.task in GAIT_TASKS:
             items.append((path, run.task, gait_seed(tops[m][k], run.seeds), True))
     done = iter(list(pool.map(_score_seed, items)) if pool else [_score_seed(x) for x in items])
     for m, _, i, scores in todo:
         entry = dict(cache.get((m, i), {}))
         if scores:
             entry["scores"] = [next(done) for _ in seeds]
-        if run.task == "walk":
+        if run.task in GAIT_TASKS:
             entry["gait"] = next(done)
         cache[(m, i)] = entry
     out: dict = {"seeds": seeds}

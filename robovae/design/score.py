@@ -25,6 +25,10 @@ measures being written in :mod:`robovae.evaluate` can replace these behind the s
   power that gait's actuators deliver while its distance counts, ``mass`` the robot's (kg).
   (The quality table's locomotion measure searches 64 gaits of 4 s and does not stop at
   falls.)
+- **step** (:func:`step_score`): walk for a robot that must step: one with a motor on a hinge
+  without limits (a wheel or a rotor:
+  :func:`robovae.evaluate.quality.locomotion.continuous_actuators`), which could roll, scores
+  0 (``error`` names it) without simulation; any other robot scores as for walk.
 - **stand** (:func:`stand_score`): the standing test
   (:func:`robovae.evaluate.quality.standing.standing`) for 3 s (joints PD-held at their rest
   pose with the robot's own torque limits); ``score`` is the lowest root height over the test
@@ -50,8 +54,8 @@ import numpy as np
 from robovae.data.loading import quiet_forward
 from robovae.evaluate.quality.locomotion import GaitResult, continuous_actuators, gait
 
-__all__ = ["SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score", "walk_gait",
-           "walk_score"]
+__all__ = ["GAIT_TASKS", "SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score",
+           "step_score", "walk_gait", "walk_score", "Wheeled"]
 
 #: Changes whenever a measure changes: an optimisation log of another version is not continued.
 #: 3: the walk score is the quality measure's gait search (issue 22); 4: rollouts that fly
@@ -64,11 +68,22 @@ _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 
 
+#: The tasks scored by a gait (their best robots get a ``gait.json``).
+GAIT_TASKS = ("walk", "step")
+
+
+class Wheeled(ValueError):
+    """A robot that could roll (a motor on a hinge without limits) given to task step."""
+
+
 def _walk(path: str | os.PathLike, seed: int, trials: int, seconds: float, settle: float,
-          max_tilt: float) -> tuple[GaitResult, mujoco.MjModel]:
+          max_tilt: float, step: bool = False) -> tuple[GaitResult, mujoco.MjModel]:
     from robovae.envs.walk import walk_scene
 
     _, scene = walk_scene(path)
+    if step and continuous_actuators(scene.model).any():
+        raise Wheeled("wheeled: a motor drives a hinge without limits (task step scores "
+                      "robots that step, not roll)")
     return gait(scene.model, rollouts=trials, seconds=seconds, seed=seed,
                 settle=settle / seconds, max_tilt=max_tilt), scene.model
 
@@ -82,8 +97,21 @@ def walk_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds:
             "frequency": g.frequency, "power": g.power, "mass": g.mass}
 
 
+def step_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
+               settle: float = 1.0, max_tilt: float = 60.0) -> dict:
+    """:func:`walk_score` of a robot without a motor on a hinge without limits (module
+    docstring).
+
+    Raises:
+        Wheeled: a wheeled robot (:func:`score_robot` makes it a 0 with that error).
+    """
+    g, _ = _walk(path, seed, trials, seconds, settle, max_tilt, step=True)
+    return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
+            "frequency": g.frequency, "power": g.power, "mass": g.mass}
+
+
 def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
-              settle: float = 1.0, max_tilt: float = 60.0) -> dict:
+              settle: float = 1.0, max_tilt: float = 60.0, step: bool = False) -> dict:
     """The gait that gives :func:`walk_score` (same arguments) its score, as JSON-ready
     numbers: ``score``, ``speed``, ``extent``, ``power``, ``mass``, ``seconds``, ``settle``,
     ``max_tilt``, the ``score_seed``, ``wheeled`` (a motor drives a hinge without limits: the
@@ -91,8 +119,9 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
     ``phase`` and ``offset`` per actuator in the model's order (``actuators``: their names). In
     ``robovae/Walk-v0``'s normalised actions it is ``a(t) = clip(B + A sin(2 pi f t + phi), -1,
     1)`` (:class:`robovae.envs.gait.SinusoidGait`); a robot that scores 0 has no gait (``frequency``
-    None, empty lists)."""
-    g, model = _walk(path, seed, trials, seconds, settle, max_tilt)
+    None, empty lists). ``step``: :func:`step_score`'s gait (a wheeled robot raises
+    :class:`Wheeled`)."""
+    g, model = _walk(path, seed, trials, seconds, settle, max_tilt, step)
     moves = g.speed > 0
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]
     return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent, "score_seed": seed,
@@ -157,8 +186,8 @@ def reach_score(path: str | os.PathLike, seed: int = 0, samples: int = 512) -> d
 
 
 #: Task name → scorer ``(path, seed) -> dict``.
-TASKS: dict[str, Callable[..., dict]] = {"walk": walk_score, "stand": stand_score,
-                                         "reach": reach_score}
+TASKS: dict[str, Callable[..., dict]] = {"walk": walk_score, "step": step_score,
+                                         "stand": stand_score, "reach": reach_score}
 
 
 def score_robot(path: str | os.PathLike, task: str, seed: int = 0) -> dict:

@@ -26,7 +26,7 @@ from robovae.design.optimize import (
     score_seeds,
 )
 from robovae.design.results import gait_seed
-from robovae.design.score import reach_score, score_robot, walk_score
+from robovae.design.score import Wheeled, reach_score, score_robot, walk_gait, walk_score
 from robovae.envs import WALK_ID
 from robovae.envs.gait import SinusoidGait, replay
 from robovae.envs.walk import walk_scene
@@ -54,6 +54,21 @@ def test_walk_score_is_deterministic_and_normalised(quadruped):
     scene = walk_scene(quadruped)[1]
     assert a["score"] == gait(scene.model, rollouts=2, seconds=1.5, settle=1 / 3,
                               max_tilt=60.0).speed
+
+
+def test_step_scores_walkers_and_refuses_wheels(quadruped, tmp_path):
+    """Task step is walk for a robot without a motor on a hinge without limits; a wheeled
+    robot, which could roll, scores 0 with the reason, and its gait is none."""
+    kw = {"seed": 0}
+    assert score_robot(quadruped, "step", **kw) == score_robot(quadruped, "walk", **kw)
+    mobile = tmp_path / "mobile.xml"
+    mobile.write_text(procedural_spec(0, "mobile_manipulator").to_xml())
+    assert score_robot(mobile, "walk")["score"] > 0  # it rolls
+    res = score_robot(mobile, "step")
+    assert res["score"] == 0.0 and res["error"].startswith("Wheeled: wheeled: a motor drives")
+    with pytest.raises(Wheeled):
+        walk_gait(mobile, step=True)
+    assert walk_gait(mobile)["wheeled"] is True and walk_gait(quadruped)["wheeled"] is False
 
 
 def test_scores_of_robots_that_cannot_do_the_task(tmp_path):
