@@ -383,7 +383,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         robot's median score under :data:`HELDOUT_SEEDS`), and ``heldout_best`` and
         ``heldout_best_rank`` (the largest such median among the ``top`` best robots, and that
         robot's rank: the pick of a user who wants the robot that does the task best, not the
-        one whose gaits were luckiest), for walk ``power_per_kg`` (the best robot's scoring
+        one whose gaits were luckiest), for walk and step ``power_per_kg`` (the best robot's scoring
         gait: mean mechanical power over its mass, W/kg; else None) and ``top_wheeled`` (how
         many of the ``top`` best robots have a motor on a hinge without limits, and so may roll
         rather than step; else None) of ``top_robots``; plus ``out``, ``log``, ``plot``.
@@ -449,7 +449,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         gait = (held[m][0].get("gait") or {}) if held[m] else {}  # walk: the best's gait
         summary[m]["power_per_kg"] = gait["power"] / gait["mass"] \
             if gait.get("power") is not None and gait.get("mass") else None
-        # walk: how many of the top robots have a motor on a hinge without limits (may roll)
+        # walk, step: how many top robots have a motor on a hinge without limits (may roll)
         wheels = [h["gait"].get("wheeled") for h in held[m] if "gait" in h]
         summary[m]["top_wheeled"] = sum(w is True for w in wheels) if wheels else None
         summary[m]["top_robots"] = len(held[m])

@@ -124,10 +124,10 @@ def _score_seed(item: tuple[str, str, int, bool]) -> float | dict:
         try:
             return {**walk_gait(path, seed=seed, step=task == "step"), "error": None}
         except Exception as e:  # as score_robot: a robot that cannot walk scores 0, no gait
-            return {"score": 0.0, "score_seed": seed, "wheeled": True if isinstance(e, Wheeled)
-                    else None, "frequency": None,
-                    "actuators": [],
-                    "amplitude": [], "phase": [], "offset": [], "power": 0.0, "mass": None,
+            wheeled = True if isinstance(e, Wheeled) else None  # task step refuses wheels
+            return {"score": 0.0, "score_seed": seed, "wheeled": wheeled, "frequency": None,
+                    "actuators": [], "amplitude": [], "phase": [], "offset": [], "power": 0.0,
+                    "mass": None,
                     "error": " ".join(f"{type(e).__name__}: {e}".split())[:300]}
     return float(score_robot(path, task, seed=seed)["score"])
 

@@ -88,13 +88,16 @@ def _walk(path: str | os.PathLike, seed: int, trials: int, seconds: float, settl
                 settle=settle / seconds, max_tilt=max_tilt), scene.model
 
 
+def _record(g: GaitResult) -> dict:
+    return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
+            "frequency": g.frequency, "power": g.power, "mass": g.mass}
+
+
 def walk_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
                settle: float = 1.0, max_tilt: float = 60.0) -> dict:
     """Best open-loop gait speed in body lengths per second (module docstring): ``trials``
     gaits of ``seconds``, the first ``settle`` seconds not counted."""
-    g, _ = _walk(path, seed, trials, seconds, settle, max_tilt)
-    return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
-            "frequency": g.frequency, "power": g.power, "mass": g.mass}
+    return _record(_walk(path, seed, trials, seconds, settle, max_tilt)[0])
 
 
 def step_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
@@ -105,9 +108,7 @@ def step_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds:
     Raises:
         Wheeled: a wheeled robot (:func:`score_robot` makes it a 0 with that error).
     """
-    g, _ = _walk(path, seed, trials, seconds, settle, max_tilt, step=True)
-    return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent,
-            "frequency": g.frequency, "power": g.power, "mass": g.mass}
+    return _record(_walk(path, seed, trials, seconds, settle, max_tilt, step=True)[0])
 
 
 def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
