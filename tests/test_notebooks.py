@@ -8,6 +8,7 @@ Pictures and robots go to a temporary folder, never into the repository.
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -79,11 +80,11 @@ def test_design_runs(notebook_env, monkeypatch, trained_nodes):
     monkeypatch.setenv("ROBOVAE_CKPT", str(ckpt))
     nb, seconds = execute("design.ipynb")
     text = outputs(nb)
-    assert "best walk score" in text and "after 3 evaluations" in text
+    assert "best step score" in text and "after 3 evaluations" in text
     assert "could not walk" in text
     # the best robot driven by its gait in Walk-v0 (or, if it scored 0, the one-line refusal)
     assert "its gait replayed in Walk-v0" in text or "no gait" in text
     out = notebook_env / "out"
     assert (out / "design_convergence.png").is_file() and (out / "design_best.png").is_file()
-    assert (out / "design_walk" / "log.json").is_file()
+    assert json.loads((out / "design_step" / "log.json").read_text())["settings"]["task"] == "step"
     assert seconds < 150, f"design took {seconds:.0f} s"
