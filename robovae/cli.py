@@ -98,6 +98,7 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
 def cmd_optimize(args: argparse.Namespace) -> int:
     """CMA-ES over the latent space for a task, with random-prior and procedural baselines."""
     from robovae.design.optimize import METHODS, optimize
+    from robovae.design.score import GAIT_TASKS
 
     res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
                    top=args.top, variance=args.variance, population=args.population,
@@ -119,7 +120,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
         row[wheeled] = "" if res[m].get("top_wheeled") is None else \
             f"{res[m]['top_wheeled']}/{res[m]['top_robots']}"
     columns = ["method", "evaluations", "best", "best index", held, pick]
-    gaits = args.task in ("walk", "step")  # robovae.design.score.GAIT_TASKS
+    gaits = args.task in GAIT_TASKS
     print(format_table(rows, columns + ([power, wheeled] if gaits else [])))
     print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
     if gaits:  # robovae.design.results
