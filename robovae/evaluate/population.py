@@ -126,8 +126,48 @@ def histogram_kl(p: Sequence[float], q: Sequence[float], bins: int | np.ndarray 
 
 
 def _sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    d = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * a @ b.T
-    return np.maximum(d, 0.0)
+    """Squared Euclidean distances ``|a_i|² + |b_j|² − 2 a_i·b_j`` (floored at 0), built in
+    place: one ``[len(a), len(b)]`` matrix of memory, no temporaries of its size."""
+    d = a @ b.T
+    d *= -2.0
+    d += (a * a).sum(1)[:, None]
+    d += (b * b).sum(1)[None, :]
+    return np.maximum(d, 0.0, out=d)
+
+
+#: Rows of a pairwise block held at once by the nearest-neighbour searches (memory
+#: ``ROWS × N`` floats).
+ROWS = 512
+
+
+def _kth_nearest(a: np.ndarray, b: np.ndarray, k: int, same: bool) -> np.ndarray:
+    """Distance from each row of ``a`` to its ``k``-th nearest row of ``b`` (``same``: ``a``
+    is ``b`` and a point is not its own neighbour), in blocks of :data:`ROWS` rows."""
+    out = np.empty(len(a))
+    for start in range(0, len(a), ROWS):
+        block = _sqdist(a[start:start + ROWS], b)
+        if same:
+            rows = np.arange(block.shape[0])
+            block[rows, start + rows] = np.inf
+        out[start:start + block.shape[0]] = np.partition(block, k - 1, axis=1)[:, k - 1]
+    return np.sqrt(out)  # the square root is monotone: the k-th of the squares is the k-th
+
+
+def _median_distance(d2: np.ndarray) -> float:
+    """Median of the distances above the diagonal of a square matrix of squared distances,
+    gathered row by row into one buffer (half the matrix) instead of through index arrays."""
+    n = len(d2)
+    buf = np.empty(n * (n - 1) // 2)
+    pos = 0
+    for i in range(n - 1):
+        buf[pos:pos + n - 1 - i] = d2[i, i + 1:]
+        pos += n - 1 - i
+    np.sqrt(buf, out=buf)
+    return float(np.median(buf, overwrite_input=True))
+
+
+#: Permutations of the MMD test evaluated per matrix product (memory ``N × BATCH`` floats).
+BATCH = 64
 
 
 def mmd_rbf(x: np.ndarray, y: np.ndarray, bandwidth: float | None = None,
@@ -138,6 +178,10 @@ def mmd_rbf(x: np.ndarray, y: np.ndarray, bandwidth: float | None = None,
     ``h`` defaults to the median pairwise distance of the pooled points. The p-value is the
     share of ``permutations`` random relabellings of the pooled points whose MMD² is at least
     the observed one (``(1 + count) / (1 + permutations)``; NaN with 0 permutations).
+    Each statistic comes from the block sums of the kernel matrix ``K`` (zero diagonal):
+    ``S_XX = 1_Xᵀ K 1_X``, ``S_XY = 1_Yᵀ K 1_X``, ``S_YY = ΣK − S_XX − 2 S_XY``, and
+    ``MMD² = S_XX / n(n−1) + S_YY / m(m−1) − 2 S_XY / nm``: the permutations cost one product
+    ``K V`` per :data:`BATCH` of them, and memory stays at the one ``(n + m)²`` matrix.
 
     Returns ``{"mmd2", "bandwidth", "p_value"}``.
     """
@@ -146,29 +190,36 @@ def mmd_rbf(x: np.ndarray, y: np.ndarray, bandwidth: float | None = None,
     if n < 2 or m < 2:
         return {"mmd2": math.nan, "bandwidth": math.nan, "p_value": math.nan}
     z = np.concatenate([x, y])
-    d2 = _sqdist(z, z)
+    k = _sqdist(z, z)  # the one [n + m]² matrix: squared distances, then the kernel in place
     if bandwidth is None:
-        iu = np.triu_indices(len(z), 1)
-        med = float(np.median(np.sqrt(d2[iu])))
+        med = _median_distance(k)
         bandwidth = med if med > 0 else 1.0
-    k = np.exp(-d2 / (2.0 * bandwidth ** 2))
+    k /= -(2.0 * bandwidth ** 2)
+    np.exp(k, out=k)
     np.fill_diagonal(k, 0.0)
+    total = k.sum()
 
-    def stat(ix: np.ndarray, iy: np.ndarray) -> float:
-        kxx = k[np.ix_(ix, ix)].sum() / (n * (n - 1))
-        kyy = k[np.ix_(iy, iy)].sum() / (m * (m - 1))
-        kxy = k[np.ix_(ix, iy)].sum() / (n * m)
-        return float(kxx + kyy - 2.0 * kxy)
+    def stats(in_x: np.ndarray) -> np.ndarray:
+        """MMD² of each column's split (``in_x`` ``[n + m, P]``: 1 for the x side) from the
+        kernel's sums over the blocks: ``1_Xᵀ K 1_X``, ``1_Yᵀ K 1_X`` and the rest."""
+        kx = k @ in_x
+        sxx = np.einsum("ip,ip->p", in_x, kx)
+        sxy = kx.sum(0) - sxx
+        syy = total - sxx - 2.0 * sxy
+        return sxx / (n * (n - 1)) + syy / (m * (m - 1)) - 2.0 * sxy / (n * m)
 
-    idx = np.arange(n + m)
-    observed = stat(idx[:n], idx[n:])
+    split = np.zeros((n + m, 1))
+    split[:n] = 1.0
+    observed = float(stats(split)[0])
     p = math.nan
     if permutations > 0:
         rng = np.random.default_rng(seed)
         hits = 0
-        for _ in range(permutations):
-            perm = rng.permutation(n + m)
-            hits += stat(perm[:n], perm[n:]) >= observed
+        for start in range(0, permutations, BATCH):
+            cols = np.zeros((n + m, min(BATCH, permutations - start)))
+            for c in range(cols.shape[1]):
+                cols[rng.permutation(n + m)[:n], c] = 1.0
+            hits += int(np.sum(stats(cols) >= observed))
         p = (1 + hits) / (1 + permutations)
     return {"mmd2": observed, "bandwidth": float(bandwidth), "p_value": p}
 
@@ -185,12 +236,8 @@ def coverage(train: np.ndarray, samples: np.ndarray, threshold: float | None = N
         return {"coverage": math.nan, "precision": math.nan, "threshold": math.nan,
                 "mean_nearest_sample": math.nan}
     if threshold is None:
-        if len(train) >= 2:
-            d = np.sqrt(_sqdist(train, train))
-            np.fill_diagonal(d, np.inf)
-            threshold = float(np.median(d.min(1)))
-        else:
-            threshold = 1.0
+        threshold = (float(np.median(_kth_nearest(train, train, 1, same=True)))
+                     if len(train) >= 2 else 1.0)
     d = np.sqrt(_sqdist(train, samples))
     nearest_sample = d.min(1)
     nearest_train = d.min(0)
@@ -261,13 +308,7 @@ def knn_entropy(x: np.ndarray, k: int = 3, min_distance: float = 1e-9) -> float:
     if n < 2 or d == 0:
         return math.nan
     k = max(1, min(k, n - 1))
-    eps = np.empty(n)
-    for start in range(0, n, 1024):  # chunks keep memory at 1024 × N
-        block = np.sqrt(_sqdist(x[start:start + 1024], x))
-        for r in range(block.shape[0]):
-            block[r, start + r] = np.inf
-        eps[start:start + block.shape[0]] = np.partition(block, k - 1, axis=1)[:, k - 1]
-    eps = np.maximum(eps, min_distance)
+    eps = np.maximum(_kth_nearest(x, x, k, same=True), min_distance)
     log_vd = 0.5 * d * math.log(math.pi) - math.lgamma(0.5 * d + 1.0)
     return float(_digamma(n) - _digamma(k) + log_vd + d * np.mean(np.log(eps)))
 

@@ -104,6 +104,31 @@ def test_mmd_identity_vs_shift() -> None:
     assert math.isnan(mmd_rbf(x, x, permutations=0)["p_value"])
 
 
+def test_mmd_block_sums_match_the_kernel_blocks() -> None:
+    """The statistic and every permutation's, from ``K V`` products, equal the mean kernel
+    values over the blocks of the kernel matrix, computed directly (the definition)."""
+    rng = np.random.default_rng(3)
+    x, y = rng.normal(size=(37, 4)), rng.normal(size=(23, 4)) + 0.4
+    z = np.concatenate([x, y])
+    d = np.sqrt(((z[:, None] - z[None]) ** 2).sum(-1))
+    h = float(np.median(d[np.triu_indices(len(z), 1)]))
+    k = np.exp(-d ** 2 / (2 * h * h))
+    np.fill_diagonal(k, 0.0)
+
+    def direct(ix: np.ndarray, iy: np.ndarray) -> float:
+        return (k[np.ix_(ix, ix)].sum() / (37 * 36) + k[np.ix_(iy, iy)].sum() / (23 * 22)
+                - 2 * k[np.ix_(ix, iy)].sum() / (37 * 23))
+
+    observed = direct(np.arange(37), np.arange(37, 60))
+    rng5 = np.random.default_rng(5)
+    perms = [rng5.permutation(60) for _ in range(150)]
+    hits = sum(direct(p[:37], p[37:]) >= observed for p in perms)
+    got = mmd_rbf(x, y, permutations=150, seed=5)  # 150: more than one batch of permutations
+    assert got["bandwidth"] == pytest.approx(h, rel=1e-12)
+    assert got["mmd2"] == pytest.approx(observed, rel=1e-9)
+    assert got["p_value"] == (1 + hits) / 151
+
+
 def test_coverage_of_a_set_by_itself_and_by_a_far_set() -> None:
     rng = np.random.default_rng(1)
     x = rng.normal(size=(40, 4))
