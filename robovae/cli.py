@@ -103,8 +103,8 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
                    top=args.top, variance=args.variance, population=args.population,
                    score_sets=args.score_sets, **{k: v for k, v in (
-                       ("restart_after", args.restart_after), ("local_step", args.local_step))
-                       if v is not None})
+                       ("restart_after", args.restart_after), ("local_step", args.local_step),
+                       ("distinct", args.distinct)) if v is not None})
     held = "held-out median"  # the best robot re-scored with score seeds 1-8
     pick = "held-out best (rank)"  # the largest such median among the --top best robots
     rows = [{"method": m, "evaluations": res[m]["evaluations"], "best": f"{res[m]['best']:.4f}",
@@ -272,6 +272,9 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--local-step", type=float, default=None,
                    help="step size of a local restart, in the whitened prior's units; "
                         "default 0.15")
+    o.add_argument("--distinct", type=float, default=None,
+                   help="least distance between two latent designs among the --top best robots, "
+                        "in the whitened prior's units (0: near copies allowed); default 1")
     o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
     o.set_defaults(func=cmd_optimize)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "

@@ -118,6 +118,10 @@ RESTART_AFTER = 10
 #: Default step size of a local restart, around the best point so far (whitened prior units):
 #: ``optimize(local_step=...)``, ``robovae optimize --local-step``.
 LOCAL_SIGMA = 0.15
+#: Default least distance between two latent designs among a method's best robots (whitened
+#: prior units: :func:`robovae.design.results.top_records`): ``optimize(distinct=...)``,
+#: ``robovae optimize --distinct``.
+DISTINCT = 1.0
 #: The error of a latent whose decoding did not finish its tree (scored 0, not simulated).
 UNFINISHED = "unfinished decoding: the tree reached the decoder's node or depth limit"
 #: How a decoded candidate is written (as ``robovae generate``): generation fixes
@@ -151,11 +155,11 @@ class _Run:
     def __init__(self, model: RoboVAE, task: str, budget: int, out: Path, seed: int,
                  jobs: int, top: int, variance: float, population: int | None = None,
                  score_sets: int = 1, restart_after: int = RESTART_AFTER,
-                 local_step: float = LOCAL_SIGMA) -> None:
+                 local_step: float = LOCAL_SIGMA, distinct: float = DISTINCT) -> None:
         from cmaes import CMA
 
         self.model, self.task, self.budget, self.out = model, task, budget, out
-        self.seed, self.jobs, self.top = seed, jobs, top
+        self.seed, self.jobs, self.top, self.distinct = seed, jobs, top, distinct
         self.restart_after, self.local_step = restart_after, local_step
         self.seeds = score_seeds(score_sets)
         self.dim = int(model.hparams.latent_dim)
@@ -370,13 +374,15 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
              seed: int = 0, jobs: int = 0, top: int = 10, progress: bool = True,
              variance: float = 0.9, population: int | None = None,
              score_sets: int = 1, restart_after: int = RESTART_AFTER,
-             local_step: float = LOCAL_SIGMA) -> dict:
+             local_step: float = LOCAL_SIGMA, distinct: float = DISTINCT) -> dict:
     """Run (or continue) an optimisation (module docstring). ``population``: CMA-ES candidates
     per generation (None: ``4 + floor(3 ln k)``); each round scores as many baseline robots.
     ``score_sets``: score seeds per robot (:func:`score_seeds`), each evaluation then costs
     that many scorings for every method. ``restart_after``: CMA-ES generations without a
     better robot before a restart; ``local_step``: the step size of a local restart (whitened
-    prior units); both are settings of the run (module docstring).
+    prior units); both are settings of the run (module docstring). ``distinct``: the least
+    distance between two latent designs among a method's ``top`` best robots (whitened prior
+    units; 0: the plain top), a choice of what to write, not of the search.
 
     Returns:
         per method ``evaluations``, ``best`` score, ``best_index``, ``heldout`` (the best
@@ -391,7 +397,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     Raises:
         RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
             ``population < 2``, ``score_sets < 1``, ``restart_after < 1``, ``local_step`` not
-            > 0, bad checkpoint, ``out`` not usable.
+            > 0, ``distinct`` < 0, bad checkpoint, ``out`` not usable.
     """
     if task not in TASKS:
         raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
@@ -409,12 +415,14 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         raise RobovaeError(f"robovae: --restart-after must be >= 1, got {restart_after}")
     if not (local_step > 0 and math.isfinite(local_step)):
         raise RobovaeError(f"robovae: --local-step must be > 0, got {local_step}")
+    if not (distinct >= 0 and math.isfinite(distinct)):
+        raise RobovaeError(f"robovae: --distinct must be >= 0, got {distinct}")
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
     model = own_model(ckpt)  # decoded in float64: never the caller's object
     run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
-               score_sets, restart_after, local_step)
+               score_sets, restart_after, local_step, distinct)
     run.load()
     out.mkdir(parents=True, exist_ok=True)
     from tqdm.auto import tqdm

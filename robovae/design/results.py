@@ -5,7 +5,8 @@ Everything here is rebuilt from the run's ``log.json`` (:mod:`robovae.design.opt
 continued or finished run rewrites it the same way:
 
 - ``best/<method>/rank_<k>/robot.xml`` (+ ``scene.xml``): the ``top`` best robots of each
-  method, best first (ties: the lower index), written as the run wrote them for scoring;
+  method, best first (ties: the lower index), no two latent designs nearer than the run's
+  ``distinct`` (:func:`top_records`), written as the run wrote them for scoring;
 - the log's ``heldout``: each of those robots re-scored with the score seeds
   :data:`HELDOUT_SEEDS` (1–8; the run selects with seed 0), the eight scores and their median.
   A method's best is the maximum of many scores under one seed and so is biased upwards (for
@@ -37,7 +38,7 @@ if TYPE_CHECKING:  # the model stack stays out of the worker processes that impo
     from robovae.model.vae import RoboVAE
 
 __all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "gait_seed", "heldout", "heldout_todo",
-           "plot", "top_records", "write_best"]
+           "plot", "search_point", "top_records", "write_best"]
 
 METHODS = ("cma", "prior", "procedural")
 #: Score seeds of the held-out re-scoring of each method's best robots (module docstring).
@@ -52,6 +53,9 @@ class Run(Protocol):
     task: str
     seed: int
     top: int
+    distinct: float
+    origin: np.ndarray
+    basis: np.ndarray
     floating: bool
     seeds: list[int]
     model: RoboVAE
@@ -69,10 +73,34 @@ def best_so_far(scores: Sequence[float]) -> np.ndarray:
         np.zeros(0)
 
 
+def search_point(run: Run, z: Sequence[float]) -> np.ndarray:
+    """The point ``y`` of the run's search space (the whitened prior subspace) nearest to the
+    latent ``z``: ``y = B⁺ (z − m_0)`` with ``B = U_k diag(λ_k)^{1/2}`` (``run.basis``), so
+    that ``|y − y'|`` is the distance of two designs in prior standard deviations."""
+    return np.linalg.lstsq(run.basis, np.asarray(z, float) - run.origin, rcond=None)[0]
+
+
 def top_records(run: Run, method: str) -> list[dict]:
-    """The ``top`` best records of ``method``, best first (ties: lower index)."""
-    return sorted(run.log["evaluations"][method],
-                  key=lambda r: (-r["score"], r["index"]))[:run.top]
+    """The ``top`` best records of ``method``, best first (ties: lower index), taken greedily
+    so that no two latent designs lie within ``run.distinct`` of each other in the search
+    space (:func:`search_point`; 0: the plain top; a procedural robot, without a latent, is a
+    design of its own): a run's best are otherwise one design and its near copies, the
+    neighbourhood a local restart climbed."""
+    ranked = sorted(run.log["evaluations"][method], key=lambda r: (-r["score"], r["index"]))
+    if run.distinct <= 0:
+        return ranked[:run.top]
+    out: list[dict] = []
+    taken: list[np.ndarray] = []
+    for r in ranked:
+        if len(out) == run.top:
+            break
+        if "z" in r:
+            y = search_point(run, r["z"])
+            if any(np.linalg.norm(y - t) < run.distinct for t in taken):
+                continue
+            taken.append(y)
+        out.append(r)
+    return out
 
 
 def gait_seed(record: dict, seeds: Sequence[int]) -> int:

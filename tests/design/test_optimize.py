@@ -25,7 +25,7 @@ from robovae.design.optimize import (
     optimize,
     score_seeds,
 )
-from robovae.design.results import gait_seed
+from robovae.design.results import gait_seed, search_point, top_records
 from robovae.design.score import Wheeled, reach_score, score_robot, walk_gait, walk_score
 from robovae.envs import WALK_ID
 from robovae.envs.gait import SinusoidGait, replay
@@ -278,6 +278,7 @@ def test_a_worker_scores_candidates_without_torch(tmp_path):
     (["--task", "walk", "--budget", "2", "--restart-after", "0"], "--restart-after must be >= 1"),
     (["--task", "walk", "--budget", "2", "--local-step", "0"], "--local-step must be > 0"),
     (["--task", "walk", "--budget", "2", "--local-step", "nan"], "--local-step must be > 0"),
+    (["--task", "walk", "--budget", "2", "--distinct", "-1"], "--distinct must be >= 0"),
 ])
 def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, message):
     _, _, ckpt = trained_nodes
@@ -503,3 +504,26 @@ def test_optimize_help_gives_the_restart_defaults(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert f"default {optimize_module.RESTART_AFTER}" in text
     assert f"default {optimize_module.LOCAL_SIGMA:g}" in text
+    assert f"default {optimize_module.DISTINCT:g}" in text
+
+
+def test_top_records_are_distinct_designs():
+    """A method's best robots skip latent designs within ``distinct`` (whitened prior units)
+    of a better one; procedural robots have no latent and are each their own design."""
+    rng = np.random.default_rng(0)
+    basis = np.linalg.qr(rng.normal(size=(6, 2)))[0] * np.array([2.0, 0.5])  # U diag(λ)^½
+    origin = rng.normal(size=6)
+    ys = [np.array(y) for y in ([0, 0], [0.3, 0], [0, 0.5], [2, 0], [2.2, 0.1], [0, 3])]
+    scores = [0.9, 0.8, 0.7, 0.6, 0.5, 0.1]
+    cma = [{"index": i, "score": s, "z": list(origin + basis @ y)}
+           for i, (y, s) in enumerate(zip(ys, scores))]
+    proc = [{"index": i, "score": 0.5, "seed": i} for i in range(4)]
+    run = type("Run", (), {"log": {"evaluations": {"cma": cma, "procedural": proc}}, "top": 3,
+                           "distinct": 1.0, "origin": origin, "basis": basis})()
+    assert np.allclose(search_point(run, cma[4]["z"]), ys[4])
+    assert [r["index"] for r in top_records(run, "cma")] == [0, 3, 5]
+    assert [r["index"] for r in top_records(run, "procedural")] == [0, 1, 2]
+    run.distinct = 0.4  # only the nearest copy (0.3 away) is skipped
+    assert [r["index"] for r in top_records(run, "cma")] == [0, 2, 3]
+    run.distinct, run.top = 0.0, 4
+    assert [r["index"] for r in top_records(run, "cma")] == [0, 1, 2, 3]
