@@ -21,6 +21,8 @@ SHARED_MENAGERIE = Path(os.environ.get("ROBOVAE_SHARED_MENAGERIE",
 CORPUS = REPO / "tests" / "data" / "corpus"
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+if os.environ.get("PYTEST_XDIST_WORKER"):  # two test processes on two cores: one thread each
+    torch.set_num_threads(1)
 
 
 @pytest.fixture(scope="session")
