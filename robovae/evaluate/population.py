@@ -140,15 +140,14 @@ def _sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 ROWS = 512
 
 
-def _kth_nearest(a: np.ndarray, b: np.ndarray, k: int, same: bool) -> np.ndarray:
-    """Distance from each row of ``a`` to its ``k``-th nearest row of ``b`` (``same``: ``a``
-    is ``b`` and a point is not its own neighbour), in blocks of :data:`ROWS` rows."""
-    out = np.empty(len(a))
-    for start in range(0, len(a), ROWS):
-        block = _sqdist(a[start:start + ROWS], b)
-        if same:
-            rows = np.arange(block.shape[0])
-            block[rows, start + rows] = np.inf
+def _kth_nearest(x: np.ndarray, k: int) -> np.ndarray:
+    """Distance from each row of ``x`` to its ``k``-th nearest other row, in blocks of
+    :data:`ROWS` rows."""
+    out = np.empty(len(x))
+    for start in range(0, len(x), ROWS):
+        block = _sqdist(x[start:start + ROWS], x)
+        rows = np.arange(block.shape[0])
+        block[rows, start + rows] = np.inf  # a point is not its own neighbour
         out[start:start + block.shape[0]] = np.partition(block, k - 1, axis=1)[:, k - 1]
     return np.sqrt(out)  # the square root is monotone: the k-th of the squares is the k-th
 
@@ -236,7 +235,7 @@ def coverage(train: np.ndarray, samples: np.ndarray, threshold: float | None = N
         return {"coverage": math.nan, "precision": math.nan, "threshold": math.nan,
                 "mean_nearest_sample": math.nan}
     if threshold is None:
-        threshold = (float(np.median(_kth_nearest(train, train, 1, same=True)))
+        threshold = (float(np.median(_kth_nearest(train, 1)))
                      if len(train) >= 2 else 1.0)
     d = np.sqrt(_sqdist(train, samples))
     nearest_sample = d.min(1)
@@ -308,7 +307,7 @@ def knn_entropy(x: np.ndarray, k: int = 3, min_distance: float = 1e-9) -> float:
     if n < 2 or d == 0:
         return math.nan
     k = max(1, min(k, n - 1))
-    eps = np.maximum(_kth_nearest(x, x, k, same=True), min_distance)
+    eps = np.maximum(_kth_nearest(x, k), min_distance)
     log_vd = 0.5 * d * math.log(math.pi) - math.lgamma(0.5 * d + 1.0)
     return float(_digamma(n) - _digamma(k) + log_vd + d * np.mean(np.log(eps)))
 
