@@ -19,6 +19,7 @@ from robovae.evaluate.quality.locomotion import (
 )
 from robovae.evaluate.quality.measure import measure
 from robovae.evaluate.quality.stage import prepare, rest_pose, robot_points, stage_compiled
+from robovae.evaluate.quality.standing import HeldRun, first_steps
 from robovae.generate.validate import check_robot
 
 FAST = {"rollouts": 8, "seconds": 2.0}
@@ -61,6 +62,22 @@ def test_stopping_early_does_not_change_the_verdict() -> None:
         assert early.stands == full.stands and early.fell_at == full.fell_at
         if early.stands:
             assert early.height_ratio == pytest.approx(full.height_ratio, abs=0.01)
+
+
+def test_a_robot_at_rest_sleeps_and_each_sleeping_segment_starts_awake() -> None:
+    """After the first second MuJoCo's sleeping freezes a held robot at rest (velocities exactly
+    zero); a new segment from a pose in the air falls, whatever the last segment left."""
+    held = HeldRun(stage(procedural_spec(2, "quadruped")))
+    nq, nv = held.model.nq, held.model.nv
+    held.run(first_steps(held.model))
+    states, _ = held.run(250, sleep=1e-3)
+    assert held.stage.data.ntree_awake == 0 and not states[-1, 1 + nq:1 + nq + nv].any()
+    lifted = held.start.copy()
+    lifted[1 + 2] += 0.1  # the free joint's z, zero velocity: a tree that may sleep at once
+    held.state = lifted
+    z = held.run(50, sleep=1e-3)[0][:, 1 + 2]
+    assert z[-1] < z[0] - 0.01  # fell: not left asleep by the segment before
+    assert standing(stick()).fell_at == standing(stick(), rest=0.0).fell_at  # falling: awake
 
 
 def test_standing_accepts_a_model_with_a_floor_and_leaves_it_unchanged() -> None:

@@ -31,7 +31,12 @@ free joint's ``qpos`` (position and quaternion) at every sample.
 The simulation stops early, without changing the verdict, at the first failing sample (the
 robot fell: ``height_ratio`` and ``max_tilt`` then describe the moment it failed) or once the
 robot is at rest after at least 1 s (held joints, every velocity below ``rest``: a robot at
-rest under a PD hold stays at rest; ``settled``).
+rest under a PD hold stays at rest; ``settled``). After the first second (the validation's,
+simulated without it) the simulation runs with MuJoCo's sleeping (``mjENBL_SLEEP``,
+``sleep_tolerance = rest``): a robot whose velocities, each weighted by MuJoCo's
+``dof_length``, stay below ``rest`` for ``mjMINAWAKE`` (10) steps is frozen with zero velocity,
+so it costs almost nothing until its segment ends and is then ``settled``; a robot still
+creeping or falling is simulated as without it.
 """
 
 from __future__ import annotations
@@ -59,6 +64,10 @@ _GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
 _BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
 _BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
 _DYN_INTEGRATOR = int(mujoco.mjtDyn.mjDYN_INTEGRATOR)
+_SLEEP = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+#: Equalities MuJoCo cannot sleep (a fatal error): a model with one is simulated awake.
+_NO_SLEEP = [int(mujoco.mjtEq.mjEQ_TENDON), int(mujoco.mjtEq.mjEQ_FLEX),
+             int(mujoco.mjtEq.mjEQ_FLEXVERT), int(mujoco.mjtEq.mjEQ_FLEXSTRAIN)]
 
 __all__ = ["FIRST_SECONDS", "HeldRun", "StandResult", "first_steps", "hold_at_rest", "standing",
            "torque_limits"]
@@ -180,6 +189,7 @@ class HeldRun:
             run in segments the same trajectory, to the bit, as a run in one piece).
         start, start_warmstart: the state and warm start at rest, before the first step.
         done: steps simulated.
+        can_sleep: MuJoCo can sleep the model (no flex, no tendon or flex equality).
         pending: ``[steps, state]`` arrays of the segments :func:`standing` has not judged.
         h0: the root's height above the robot's lowest point at rest (m).
         up_local: the root's local axis that points up at rest.
@@ -190,6 +200,9 @@ class HeldRun:
     def __init__(self, st: Stage, stiffness: float = 10.0, limit_torques: bool = True) -> None:
         self.stage = st
         self.model = stage(st, integrator=mujoco.mjtIntegrator.mjINT_IMPLICITFAST).model
+        # MuJoCo keeps actuated trees awake by default; the hold is a constant control
+        self.model.tree_sleep_policy[:] = int(mujoco.mjtSleepPolicy.mjSLEEP_ALLOWED)
+        self.can_sleep = not (self.model.nflex or np.isin(self.model.eq_type, _NO_SLEEP).any())
         self.pose = rest_pose(self.model)
         self.ctrl, self.limited = hold_at_rest(self.model, st.extent, stiffness, limit_torques,
                                                self.pose)
@@ -207,11 +220,22 @@ class HeldRun:
         self.done = 0
         self.pending: list[np.ndarray] = []
 
-    def run(self, nstep: int) -> tuple[np.ndarray, np.ndarray]:
+    def run(self, nstep: int, sleep: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Simulate ``nstep`` more steps in one ``mujoco.rollout`` call: the ``[nstep, state]``
         states and ``[nstep, sensordata]`` sensor values (the segment is also queued in
         ``pending``). MuJoCo's warnings accumulate in ``stage.data`` (reset when the run
-        started)."""
+        started, and when a segment sleeps).
+
+        ``sleep > 0``: MuJoCo's sleeping on for this segment, at that tolerance (module
+        docstring), when the model allows it (``can_sleep``); the segment starts awake (the
+        stage's data is reset with the flag on, which initialises MuJoCo's sleep state: the
+        rollout then sets the whole state)."""
+        if sleep > 0 and self.can_sleep:
+            self.model.opt.enableflags |= _SLEEP
+            self.model.opt.sleep_tolerance = sleep
+            mujoco.mj_resetData(self.model, self.stage.data)
+        else:
+            self.model.opt.enableflags &= ~_SLEEP
         with capture_mujoco_warnings():
             states, sensors = rollout.rollout(self.model, self.stage.data, self.state[None],
                                               self.ctrl[None, None], nstep=nstep,
@@ -249,9 +273,11 @@ def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
     ``seconds`` (``StandResult.seconds`` says how long). The simulation runs in rollouts, the
     first of :data:`FIRST_SECONDS`, then of ``chunk_seconds``, and stops early at the first
     failing sample or when the robot is at rest (after at least 1 s, every ``|qvel|`` below
-    ``rest``, m/s or rad/s). ``held``: the simulation of ``robot`` (a stage) already begun, by
-    the validator, with the same ``stiffness`` and ``limit_torques``: its segments are judged
-    first, then it is continued (the same result as starting afresh).
+    ``rest``, m/s or rad/s; after the first second MuJoCo's sleeping, at tolerance ``rest``,
+    freezes a robot at rest: module docstring; ``rest = 0``: neither). ``held``: the
+    simulation of ``robot`` (a stage) already begun, by the validator, with the same
+    ``stiffness`` and ``limit_torques``: its segments are judged first, then it is continued
+    (the same result as starting afresh).
 
     Raises:
         RobovaeError: a model without a floor; RobotFileError: a file that does not load.
@@ -292,7 +318,7 @@ def _judge(held: HeldRun, seconds: float, min_height: float, max_tilt: float,
         if held.pending:
             s = held.pending.pop(0)
         else:
-            s = held.run(first_steps(model) if done == 0 else chunk)[0]
+            s = held.run(first_steps(model), 0.0)[0] if done == 0 else held.run(chunk, rest)[0]
             held.pending.pop()
         n = min(len(s), steps - done)
         s = s[:n]
