@@ -255,10 +255,9 @@ def rest_pose(model: mujoco.MjModel) -> np.ndarray:
     ``qpos0``; hinge and slide positions clipped into their joint ranges."""
     k = rest_key(model)
     q = model.key_qpos[k].copy() if k >= 0 else model.qpos0.copy()
-    for j in range(model.njnt):
-        if model.jnt_type[j] in MOVING and model.jnt_limited[j]:
-            a = model.jnt_qposadr[j]
-            q[a] = np.clip(q[a], *model.jnt_range[j])
+    j = np.flatnonzero(np.isin(model.jnt_type, MOVING) & (model.jnt_limited != 0))
+    a = model.jnt_qposadr[j]
+    q[a] = np.clip(q[a], model.jnt_range[j, 0], model.jnt_range[j, 1])
     return q
 
 
