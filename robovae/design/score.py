@@ -61,8 +61,9 @@ __all__ = ["GAIT_TASKS", "SCORE_VERSION", "TASKS", "reach_score", "score_robot",
 #: 3: the walk score is the quality measure's gait search (issue 22); 4: rollouts that fly
 #: (centre of mass above half the extent over rest, ``locomotion.MAX_RISE``) score 0;
 #: 5: robots with an actuated base (``locomotion.actuated_base``) score 0; 6: the actuators of
-#: unlimited hinges get a constant offset in each gait (``locomotion.continuous_actuators``).
-SCORE_VERSION = 6
+#: unlimited hinges get a constant offset in each gait (``locomotion.continuous_actuators``);
+#: 7: the standing test (task stand) sleeps a robot at rest after its first second.
+SCORE_VERSION = 7
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _BALL = int(mujoco.mjtJoint.mjJNT_BALL)
