@@ -318,7 +318,7 @@ def _judge(held: HeldRun, seconds: float, min_height: float, max_tilt: float,
         if held.pending:
             s = held.pending.pop(0)
         else:
-            s = held.run(first_steps(model), 0.0)[0] if done == 0 else held.run(chunk, rest)[0]
+            s = (held.run(chunk, sleep=rest) if done else held.run(first_steps(model)))[0]
             held.pending.pop()
         n = min(len(s), steps - done)
         s = s[:n]
