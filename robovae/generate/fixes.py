@@ -11,27 +11,52 @@ that are not validity rules, each reported by name when it changes the graph.
    (:func:`robovae.generate.rules.slide_limited`).
 
 The writer's stance rules (:mod:`robovae.generate.stance`) come after, on the compiled robot.
+
+The fixes run on the graph's NumPy arrays (:class:`~robovae.data.tree_arrays.TreeArrays`); a
+PyG graph is made again once, at the end, when one of them changed it.
 """
 
 from __future__ import annotations
 
+import torch
+
 from robovae.data.features import FeatureSet
-from robovae.data.graph import RobotData
+from robovae.data.graph import RobotData, tree_data
+from robovae.data.tree_arrays import RobotTree, TreeArrays
 from robovae.generate.rules import floating_base, slide_limited
 from robovae.generate.symmetry import complete_pairs, mirror_limbs
 
 __all__ = ["decoded_fixes"]
 
 
-def decoded_fixes(graph: RobotData, feature_set: str | FeatureSet, floating: bool = True,
-                  mirror: bool = True) -> tuple[RobotData, list[str]]:
-    """The graph as ``robovae generate`` writes it (module docstring) and the names of the
-    fixes that changed it, in order; ``graph`` itself is not modified."""
+def decoded_fixes(graph: RobotTree, feature_set: str | FeatureSet, floating: bool = True,
+                  mirror: bool = True) -> tuple[RobotTree, list[str]]:
+    """The graph as ``robovae generate`` writes it (module docstring), of ``graph``'s kind (a
+    PyG graph or :class:`~robovae.data.tree_arrays.TreeArrays`), and the names of the fixes
+    that changed it, in order; ``graph`` itself is not modified (it is returned when no fix
+    changed it)."""
     fixes: list[str] = []
     steps = ([("floating_base", floating_base)] if floating else []) + \
         ([("mirror_limbs", mirror_limbs), ("complete_pairs", complete_pairs)] if mirror else []) \
         + [("slide_limited", slide_limited)]
+    arrays = TreeArrays.of(graph)
     for name, fix in steps:
-        graph, changed = fix(graph, feature_set)
+        arrays, changed = fix(arrays, feature_set)
         fixes += [name] if changed else []
-    return graph, fixes
+    if isinstance(graph, TreeArrays) or not fixes:
+        return (arrays if fixes else graph), fixes
+    return _as_graph(graph, arrays, feature_set), fixes
+
+
+def _as_graph(graph: RobotData, arrays: TreeArrays, feature_set: str | FeatureSet) -> RobotData:
+    """The PyG graph of the fixed ``arrays`` of ``graph``: a copy of ``graph`` with the new
+    features when the tree is the same, else a graph built for the new tree."""
+    x = torch.from_numpy(arrays.x)
+    if (arrays.parent.shape == tuple(graph.parent.shape)
+            and (arrays.parent == graph.parent.numpy()).all()
+            and (arrays.node_type == graph.node_type.numpy()).all()):
+        out = graph.clone()
+        out.x = x
+        return out
+    return tree_data(arrays.parent.tolist(), arrays.node_type.tolist(), x, feature_set,
+                     name=getattr(graph, "name", ""), source=getattr(graph, "source", ""))

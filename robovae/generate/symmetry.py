@@ -44,9 +44,10 @@ import torch
 
 from robovae.data.box_axes import mirror_axes
 from robovae.data.features import JOINT, LINK, FeatureSet
-from robovae.data.graph import RobotData, tree_data
+from robovae.data.graph import tree_data
+from robovae.data.tree_arrays import RobotTree, TreeArrays
 from robovae.generate.bodies import subtree, trunk
-from robovae.generate.graph_view import GraphView, as_feature_set, node_mask
+from robovae.generate.graph_view import GraphView, as_feature_set, node_mask, norm
 
 __all__ = ["ATTACH_TOL", "MIRROR_TOL", "STRAY_TOL", "complete_pairs", "is_symmetric", "limbs",
            "mirror_limbs", "mirrored_pairs"]
@@ -74,20 +75,28 @@ _FLOOR = {"len": 1e-3, "mass": 1e-3}
 def limbs(v: GraphView) -> tuple[int, list[int]]:
     """The trunk link and the roots of its limbs (children of the trunk whose subtree holds a
     joint), in order; ``(-1, [])`` when there is no trunk."""
+    t, nodes = _limbs(v)
+    return t, list(nodes)
+
+
+def _limbs(v: GraphView) -> tuple[int, dict[int, list[int]]]:
+    """The trunk link and, per limb root in order (:func:`limbs`), the limb's nodes in
+    pre-order."""
     t = trunk(v.types, v.kids) if v.nodes(LINK) else -1
     if t < 0:
-        return -1, []
-    out = [c for c in v.kids[t] if any(v.types[n] == JOINT for n in subtree(v.kids, c))]
-    return t, out
+        return -1, {}
+    nodes = {c: subtree(v.kids, c) for c in v.kids[t]}
+    return t, {c: sub for c, sub in nodes.items() if any(v.types[n] == JOINT for n in sub)}
 
 
 def _shape(v: GraphView, i: int) -> tuple:
     return (v.types[i], tuple(_shape(v, c) for c in v.kids[i]))
 
 
-def _profile(v: GraphView, root: int) -> tuple[np.ndarray, np.ndarray]:
-    links = [n for n in subtree(v.kids, root) if v.types[n] == LINK]
-    lengths = np.array([np.linalg.norm(v.get(n, "link.pos")) for n in links])
+def _profile(v: GraphView, nodes: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Lengths and masses of the links among a limb's ``nodes`` (module docstring)."""
+    links = [n for n in nodes if v.types[n] == LINK]
+    lengths = np.array([norm(v.get(n, "link.pos")) for n in links])
     masses = np.array([v.get(n, "link.mass")[0] for n in links])
     return lengths, masses
 
@@ -96,31 +105,31 @@ def _close(a: np.ndarray, b: np.ndarray, floor: float) -> bool:
     return bool(np.all(np.abs(a - b) <= MIRROR_TOL * np.maximum(np.abs(a), np.abs(b)) + floor))
 
 
-def _is_pair(v: GraphView, a: int, b: int) -> bool:
+def _is_pair(v: GraphView, limb: dict[int, list[int]], a: int, b: int) -> bool:
     if _shape(v, a) != _shape(v, b):
         return False
-    (la, ma), (lb, mb) = _profile(v, a), _profile(v, b)
+    (la, ma), (lb, mb) = _profile(v, limb[a]), _profile(v, limb[b])
     return _close(la, lb, _FLOOR["len"]) and _close(ma, mb, _FLOOR["mass"])
 
 
-def mirrored_pairs(data: RobotData, feature_set: str | FeatureSet = "paper34"
+def mirrored_pairs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
                    ) -> tuple[int, int]:
     """``(pairs, limbs)``: how many disjoint mirrored pairs the trunk's limbs form (greedy, in
     order) and how many limbs it has (module docstring)."""
     v = GraphView(data, as_feature_set(feature_set))
-    _, roots = limbs(v)
-    free = list(roots)
+    _, limb = _limbs(v)
+    free = list(limb)
     pairs = 0
     while free:
         a = free.pop(0)
-        b = next((b for b in free if _is_pair(v, a, b)), None)
+        b = next((b for b in free if _is_pair(v, limb, a, b)), None)
         if b is not None:
             free.remove(b)
             pairs += 1
-    return pairs, len(roots)
+    return pairs, len(limb)
 
 
-def is_symmetric(data: RobotData, feature_set: str | FeatureSet = "paper34") -> bool:
+def is_symmetric(data: RobotTree, feature_set: str | FeatureSet = "paper34") -> bool:
     """At least one mirrored pair and at most one unpaired limb (module docstring)."""
     pairs, n = mirrored_pairs(data, feature_set)
     return pairs >= 1 and n - 2 * pairs <= 1
@@ -128,25 +137,24 @@ def is_symmetric(data: RobotData, feature_set: str | FeatureSet = "paper34") -> 
 
 def _off_plane(p: np.ndarray) -> bool:
     """An attachment ``p`` off the sagittal plane: ``|p_y| > ATTACH_TOL |p|``."""
-    return bool(abs(p[1]) > ATTACH_TOL * max(float(np.linalg.norm(p)), 1e-9))
+    return bool(abs(p[1]) > ATTACH_TOL * max(norm(p), 1e-9))
 
 
-def _first_link(v: GraphView, i: int) -> int:
-    return next((n for n in subtree(v.kids, i) if v.types[n] == LINK), -1)
+def _first_link(v: GraphView, nodes: list[int]) -> int:
+    """The first link among a limb's ``nodes``, else -1."""
+    return next((n for n in nodes if v.types[n] == LINK), -1)
 
 
-def _n_links(v: GraphView, root: int) -> int:
-    return sum(v.types[n] == LINK for n in subtree(v.kids, root))
-
-
-def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
-    """Near-mirror pairs ``(source, replaced)``, best first (module docstring)."""
+def _planned_pairs(v: GraphView, limb: dict[int, list[int]]) -> list[tuple[int, int]]:
+    """Near-mirror pairs ``(source, replaced)`` of the limbs ``limb`` (root: nodes), best first
+    (module docstring)."""
+    roots = list(limb)
     info = {}
     for r in roots:
-        f = _first_link(v, r)
+        f = _first_link(v, limb[r])
         if f >= 0:
             p = np.asarray(v.get(f, "link.pos"), dtype=float)
-            lengths, masses = _profile(v, r)
+            lengths, masses = _profile(v, limb[r])
             off = _off_plane(p)
             info[r] = (p, len(lengths), float(lengths.sum()) + 1e-9,
                        float(masses.sum()) + 1e-9, off)
@@ -161,8 +169,8 @@ def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
             size_gap = abs(np.log(la / lb)) + abs(np.log(ma / mb))
             if size_gap > 2.0 * np.log(SIZE_RATIO):
                 continue
-            scale = max(float(np.linalg.norm(pa)), float(np.linalg.norm(pb)), 1e-9)
-            score = float(np.linalg.norm(_M * pa - pb)) / scale + size_gap
+            scale = max(norm(pa), norm(pb), 1e-9)
+            score = norm(_M * pa - pb) / scale + size_gap
             cands.append((score, a, b) if off_a else (score, b, a))
     used: set[int] = set()
     pairs = []
@@ -173,12 +181,12 @@ def _planned_pairs(v: GraphView, roots: list[int]) -> list[tuple[int, int]]:
     return pairs
 
 
-def _plan(data: RobotData, feature_set: str | FeatureSet
-          ) -> tuple[GraphView, list[int], list[tuple[int, int]]]:
-    """The graph's view, its trunk's limbs and their near-mirror pairs."""
+def _plan(data: RobotTree, feature_set: str | FeatureSet
+          ) -> tuple[GraphView, dict[int, list[int]], list[tuple[int, int]]]:
+    """The graph's view, its trunk's limbs (root: nodes) and their near-mirror pairs."""
     v = GraphView(data, as_feature_set(feature_set))
-    _, roots = limbs(v)
-    return v, roots, _planned_pairs(v, roots)
+    _, limb = _limbs(v)
+    return v, limb, _planned_pairs(v, limb)
 
 
 def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
@@ -202,14 +210,15 @@ def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
     return out
 
 
-def mirror_limbs(data: RobotData, feature_set: str | FeatureSet = "paper34"
-                 ) -> tuple[RobotData, bool]:
+def mirror_limbs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
+                 ) -> tuple[RobotTree, bool]:
     """Replace the second limb of every near-mirror pair by the mirror image of the first
     (module docstring).
 
     Returns:
-        ``(data, changed)``: the new graph (``data`` itself when no pair was found) and whether
-        a feature or the tree changed.
+        ``(data, changed)``: the new graph, of ``data``'s kind (PyG or
+        :class:`~robovae.data.tree_arrays.TreeArrays`; ``data`` itself when no pair was found),
+        and whether a feature or the tree changed.
     """
     v, _, plan = _plan(data, feature_set)
     if not plan:
@@ -217,8 +226,8 @@ def mirror_limbs(data: RobotData, feature_set: str | FeatureSet = "paper34"
     return _rebuild(data, v, {b: a for a, b in plan}, set())
 
 
-def complete_pairs(data: RobotData, feature_set: str | FeatureSet = "paper34"
-                   ) -> tuple[RobotData, bool]:
+def complete_pairs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
+                   ) -> tuple[RobotTree, bool]:
     """Give every stray limb its mirror image (module docstring): in a robot whose trunk has
     at least one near-mirror pair, a limb off the sagittal plane, in no pair, with the
     topology of a paired limb and as far off the plane as those pairs, gets its mirror image
@@ -232,20 +241,20 @@ def complete_pairs(data: RobotData, feature_set: str | FeatureSet = "paper34"
         ``(data, changed)``: the new graph (``data`` itself when nothing was added) and whether
         a limb was added.
     """
-    v, roots, plan = _plan(data, feature_set)
+    v, limb, plan = _plan(data, feature_set)
     if not plan:
         return data, False
 
     def side(r: int) -> float:  # |p_y| of the limb's attachment
-        return abs(float(v.get(_first_link(v, r), "link.pos")[1]))
+        return abs(float(v.get(_first_link(v, limb[r]), "link.pos")[1]))
 
     reach: dict[tuple, float] = {}  # per paired topology, the smallest |p_y| of its pairs
     for r in (r for pair in plan for r in pair):
         reach[_shape(v, r)] = min(reach.get(_shape(v, r), np.inf), side(r))
     paired = {r for pair in plan for r in pair}
     stray = set()
-    for r in roots:
-        f = _first_link(v, r)
+    for r in limb:
+        f = _first_link(v, limb[r])
         if r in paired or f < 0 or _shape(v, r) not in reach:
             continue
         p = np.asarray(v.get(f, "link.pos"), dtype=float)
@@ -256,10 +265,11 @@ def complete_pairs(data: RobotData, feature_set: str | FeatureSet = "paper34"
     return _rebuild(data, v, {}, stray)
 
 
-def _rebuild(data: RobotData, v: GraphView, replace: dict[int, int], twin: set[int]
-             ) -> tuple[RobotData, bool]:
+def _rebuild(data: RobotTree, v: GraphView, replace: dict[int, int], twin: set[int]
+             ) -> tuple[RobotTree, bool]:
     """The graph with the trunk's child ``b`` replaced by the mirror image of ``replace[b]``,
-    and each child in ``twin`` followed by its own mirror image; ``(graph, changed)``."""
+    and each child in ``twin`` followed by its own mirror image; ``(graph, changed)``, the
+    graph of ``data``'s kind (:class:`~robovae.data.tree_arrays.TreeArrays` or PyG)."""
     parent: list[int] = []
     types: list[int] = []
     rows: list[np.ndarray] = []
@@ -278,11 +288,14 @@ def _rebuild(data: RobotData, v: GraphView, replace: dict[int, int], twin: set[i
                 emit(c, me, True)
 
     emit(0, -1, False)
-    x = torch.from_numpy(np.stack(rows)).to(torch.float32)
-    x = torch.where(torch.from_numpy(node_mask(v.fs, types)), x,
-                    torch.zeros((), dtype=torch.float32))
-    changed = parent != v.parent or types != v.types or not torch.equal(x, data.x)
+    x = np.where(node_mask(v.fs, types), np.stack(rows).astype(np.float32), np.float32(0))
+    changed = (parent != v.parent or types != v.types
+               or not np.array_equal(x, TreeArrays.of(data).x))
     if not changed:
         return data, False
-    return tree_data(parent, types, x, v.fs, name=getattr(data, "name", ""),
+    name = getattr(data, "name", "")
+    if isinstance(data, TreeArrays):
+        return TreeArrays(x, np.array(types, dtype=np.int64), np.array(parent, dtype=np.int64),
+                          name), True
+    return tree_data(parent, types, torch.from_numpy(x), v.fs, name=name,
                      source=getattr(data, "source", "")), True

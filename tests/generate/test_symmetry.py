@@ -13,7 +13,9 @@ from robovae.data.features import LINK, get_feature_set
 from robovae.data.loading import load_robot
 from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
+from robovae.data.tree_arrays import TreeArrays
 from robovae.data.zoo import zoo_files
+from robovae.generate.fixes import decoded_fixes
 from robovae.generate.graph_view import GraphView
 from robovae.generate.symmetry import (
     complete_pairs,
@@ -185,3 +187,27 @@ def test_complete_pairs_leaves_other_limbs_alone():
     # a robot without a pair (one leg off the plane) is not given a second one
     lone = _without(g, set(roots[1:]))
     assert complete_pairs(lone) == (lone, False)
+
+
+def test_decoded_fixes_give_the_same_robot_from_a_graph_and_from_its_arrays():
+    """The fixes run on NumPy arrays: a PyG graph and its ``TreeArrays`` get the same fixes and
+    features, each back in its own kind (a hexapod with a stray leg and near-mirror pairs: the
+    tree changes; the ant: a floating base only, the tree kept; a PyG graph keeps its other
+    fields then)."""
+    g = mirror_limbs(_hexapod())[0]
+    roots = limbs(GraphView(g, FS))[1]
+    unequal = _hexapod()
+    stray = _without(unequal, {limbs(GraphView(unequal, FS))[1][5]})
+    ant = model_to_graph(load_robot(ZOO["gym_ant"]).model, "paper34", name="ant")
+    assert len(roots) == 6
+    for graph, want in ((stray, ["mirror_limbs", "complete_pairs"]), (ant, None)):
+        out, fixes = decoded_fixes(graph, FS)
+        arrays, afixes = decoded_fixes(TreeArrays.of(graph), FS)
+        assert fixes == afixes and (want is None or fixes == want), fixes
+        assert isinstance(arrays, TreeArrays) and not isinstance(out, TreeArrays)
+        assert np.array_equal(out.x.numpy(), arrays.x)
+        assert np.array_equal(out.parent.numpy(), arrays.parent)
+        assert np.array_equal(out.node_type.numpy(), arrays.node_type)
+        assert out.name == arrays.name == graph.name
+        assert set(out.keys()) == set(graph.keys())
+    assert decoded_fixes(g, FS, floating=False) == (g, [])  # nothing to fix: the graph itself
