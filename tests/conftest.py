@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import random
 from pathlib import Path
 
 import lightning as L
@@ -37,6 +38,25 @@ def menagerie_dir() -> Path:
 def cache_root(tmp_path_factory) -> Path:
     """One dataset cache folder for the whole session."""
     return tmp_path_factory.mktemp("data_cache")
+
+
+def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
+    """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
+    parent, stack = [-1], [0]
+    for i in range(1, n):
+        while len(stack) > 1 and rng.random() < pop:
+            stack.pop()
+        parent.append(stack[-1])
+        stack.append(i)
+    return parent
+
+
+def random_shape(n: int, rng: random.Random, pop: float = 0.5, fs: str = "full") -> RobotData:
+    """A tree of :func:`random_parent`'s shape, random node types (``rng``) and standard
+    normal features (torch's global generator): the model tests' trees."""
+    f = get_feature_set(fs)
+    types = [rng.randrange(f.num_node_types) for _ in range(n)]
+    return tree_data(random_parent(n, rng, pop), types, torch.randn(n, f.dim), f)
 
 
 def random_tree(rng: np.random.Generator, fs_name: str, n: int) -> RobotData:

@@ -12,24 +12,9 @@ from torch_geometric.data import Batch
 from robovae.data.features import get_feature_set
 from robovae.data.graph import _is_preorder, children, tree_data
 from robovae.model.decoder import TreeDecoder
+from tests.conftest import random_shape as random_tree
 
 FULL = get_feature_set("full")
-
-
-def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
-    """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
-    parent, stack = [-1], [0]
-    for i in range(1, n):
-        while len(stack) > 1 and rng.random() < pop:
-            stack.pop()
-        parent.append(stack[-1])
-        stack.append(i)
-    return parent
-
-
-def random_tree(n: int, rng: random.Random, pop: float = 0.5):
-    return tree_data(random_parent(n, rng, pop), [rng.randrange(3) for _ in range(n)],
-                     torch.randn(n, FULL.dim), FULL)
 
 
 def random_batch(count: int = 8, max_nodes: int = 25, seed: int = 0) -> Batch:

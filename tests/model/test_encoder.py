@@ -10,27 +10,11 @@ import pytest
 import torch
 from torch_geometric.data import Batch
 
-from robovae.data.graph import children, tree_data
+from robovae.data.graph import children
 from robovae.model.encoder import TreeEncoder, encode_reference, reparametrize
 from robovae.model.messages import level_messages, level_messages_reference
 from robovae.model.tree import TreeGRUCell, exclusive_sibling_prefix, tree_schedule
-
-
-def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
-    """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
-    parent, stack = [-1], [0]
-    for i in range(1, n):
-        while len(stack) > 1 and rng.random() < pop:
-            stack.pop()
-        parent.append(stack[-1])
-        stack.append(i)
-    return parent
-
-
-def random_tree(n: int, rng: random.Random, pop: float = 0.5, fs: str = "full"):
-    types = [rng.randrange(3 if fs == "full" else 1) for _ in range(n)]
-    x = torch.randn(n, 62 if fs == "full" else 5)
-    return tree_data(random_parent(n, rng, pop), types, x, fs)
+from tests.conftest import random_shape as random_tree
 
 
 def varied_trees(count: int, seed: int = 0, fs: str = "full") -> list:

@@ -15,26 +15,11 @@ from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.loss import vae_loss
 from robovae.model.tree import tree_schedule
 from robovae.model.vae import RoboVAE
+from tests.conftest import random_parent
+from tests.conftest import random_shape as random_tree
 
 FULL = get_feature_set("full")
 DW = 8  # node latent width
-
-
-def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
-    """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
-    parent, stack = [-1], [0]
-    for i in range(1, n):
-        while len(stack) > 1 and rng.random() < pop:
-            stack.pop()
-        parent.append(stack[-1])
-        stack.append(i)
-    return parent
-
-
-def random_tree(n: int, rng: random.Random, pop: float = 0.5, fs: str = "full"):
-    f = get_feature_set(fs)
-    types = [rng.randrange(f.num_node_types) for _ in range(n)]
-    return tree_data(random_parent(n, rng, pop), types, torch.randn(n, f.dim), f)
 
 
 def model(fs: str = "full", hidden: int = 32, latent: int = 8, seed: int = 0):
