@@ -78,7 +78,6 @@ import json
 import math
 import os
 import shutil
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -98,6 +97,7 @@ from robovae.design.results import (
 )
 from robovae.design.score import SCORE_VERSION, TASKS
 from robovae.errors import RobovaeError
+from robovae.files import atomic_write
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.generate.writer import WRITER as WRITTEN
 from robovae.model.checkpoint import own_model
@@ -141,12 +141,7 @@ def score_seeds(sets: int) -> list[int]:
 
 
 def _atomic_json(path: Path, obj: dict) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    with os.fdopen(fd, "w") as f:
-        json.dump(obj, f, indent=1)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    atomic_write(path, json.dumps(obj, indent=1))
 
 
 class _Run:

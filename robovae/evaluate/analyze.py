@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from collections.abc import Sequence
 from contextlib import nullcontext
@@ -62,6 +61,7 @@ from robovae.evaluate.quality.populations import (
 )
 from robovae.evaluate.quality.report import contact_sheets, quality_table
 from robovae.evaluate.tables import format_table
+from robovae.files import atomic_write
 from robovae.generate.pipeline import read_manifest
 from robovae.model.checkpoint import load_model, read_checkpoint
 from robovae.model.vae import RoboVAE
@@ -330,10 +330,7 @@ def save_json(result: dict, path: str | Path) -> Path:
     """Write :func:`to_json` of ``result`` atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(to_json(result), indent=1))
-    os.replace(tmp, path)
-    return path
+    return atomic_write(path, json.dumps(to_json(result), indent=1), durable=False)
 
 
 def _f(v, fmt: str = "{:.3g}") -> str:

@@ -44,6 +44,7 @@ from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
+from robovae.files import atomic_write
 from robovae.generate.build import build_robot, warm_up
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.writer import WRITER
@@ -109,9 +110,7 @@ def writable(out: Path) -> None:
 
 
 def _atomic_json(path: Path, obj: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=1))
-    os.replace(tmp, path)
+    atomic_write(path, json.dumps(obj, indent=1), durable=False)
 
 
 def read_manifest(out: Path) -> dict[int, dict]:

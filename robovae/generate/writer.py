@@ -37,7 +37,6 @@ import copy
 import functools
 import math
 import os
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +47,7 @@ import numpy as np
 from robovae.data.features import FeatureSet
 from robovae.data.loading import capture_mujoco_warnings, robot_root
 from robovae.data.tree_arrays import RobotTree
+from robovae.files import atomic_write
 from robovae.generate.bipeds import balance_home, foot_soles, strong_ankles, two_legs
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
@@ -258,32 +258,6 @@ def _scene_tree() -> ET.Element:
     return root
 
 
-def _atomic_write(path: Path, text: str, durable: bool = True) -> None:
-    """Write ``text`` to a temporary file beside ``path`` (fsync'ed when ``durable``), then
-    ``os.replace`` it into place. The temporary file is ``.<name>.<pid>.tmp``, created
-    exclusively with mode 0600 (as ``tempfile.mkstemp`` would, at a third of its CPU cost);
-    if that name is taken (a crashed writer of the same pid), ``mkstemp`` picks another."""
-    tmp = str(path.parent / f".{path.name}.{os.getpid()}.tmp")
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        try:
-            data = text.encode("utf-8")
-            while data:
-                data = data[os.write(fd, data):]
-            if durable:
-                os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def write_robot(
     data: RobotTree,
     out_dir: str | os.PathLike,
@@ -339,10 +313,10 @@ def write_robot(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     robot_path = out / "robot.xml"
-    _atomic_write(robot_path, xml, durable)
+    atomic_write(robot_path, xml, durable)
     scene_path = None
     if scene:
         scene_path = out / "scene.xml"
-        _atomic_write(scene_path, scene_xml(robot_path.name, f"{name}_scene"), durable)
+        atomic_write(scene_path, scene_xml(robot_path.name, f"{name}_scene"), durable)
     return WriteResult(robot_path, scene_path, fired, n_bodies=model.nbody - 1,
                        n_joints=model.njnt, n_geoms=model.ngeom, n_actuators=model.nu)

@@ -301,13 +301,13 @@ def test_fast_write_gives_the_same_files(tmp_path):
 
 def test_scene_is_written_after_the_robot(tmp_path, monkeypatch):
     calls = []
-    real = writer_module._atomic_write
+    real = writer_module.atomic_write
 
     def spy(path, text, durable=True):
         calls.append(path.name)
-        real(path, text, durable)
+        return real(path, text, durable)
 
-    monkeypatch.setattr(writer_module, "_atomic_write", spy)
+    monkeypatch.setattr(writer_module, "atomic_write", spy)
     write_robot(quadruped("paper34"), tmp_path, "paper34")
     assert calls == ["robot.xml", "scene.xml"]
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass
@@ -37,6 +36,7 @@ from robovae.data.procedural.robots import (
 )
 from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
+from robovae.files import atomic_write
 
 #: Most robots one ``procedural:`` source may ask for.
 MAX_ROBOTS = 10_000_000
@@ -176,21 +176,9 @@ def procedural_graphs(source: ProceduralSource, feature_set: str = "paper34", jo
                          for k, v in f.items()}) for f in fields]
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _write_batch(jobs: list[tuple[int, str, str]], config: ProceduralConfig) -> list[None]:
     for seed, kind, path in jobs:
-        _atomic_write(Path(path), procedural_spec(seed, kind, config).to_xml())
+        atomic_write(path, procedural_spec(seed, kind, config).to_xml(), durable=False)
     return [None] * len(jobs)
 
 

@@ -1,0 +1,41 @@
+"""Atomic writes (robovae.files): the old file or the new one, never half of one."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from robovae import files
+from robovae.files import atomic_write
+
+
+@pytest.mark.parametrize("durable", [True, False])
+def test_atomic_write_replaces_the_file_and_leaves_no_temporary(tmp_path, durable):
+    path = tmp_path / "log.json"
+    assert atomic_write(path, "first", durable) == path
+    atomic_write(str(path), "second é", durable)
+    assert path.read_text(encoding="utf-8") == "second é"
+    assert [p.name for p in tmp_path.iterdir()] == ["log.json"]
+
+
+def test_a_failed_write_keeps_the_old_file(tmp_path, monkeypatch):
+    path = tmp_path / "summary.json"
+    atomic_write(path, "old")
+
+    def broken_replace(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(files.os, "replace", broken_replace)
+    with pytest.raises(OSError, match="disk full"):
+        atomic_write(path, "new")
+    assert path.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]
+
+
+def test_a_stale_temporary_of_this_pid_is_not_touched(tmp_path):
+    stale = tmp_path / f".robot.xml.{os.getpid()}.tmp"
+    stale.write_text("stale")
+    atomic_write(tmp_path / "robot.xml", "<mujoco/>")
+    assert stale.read_text() == "stale"
+    assert (tmp_path / "robot.xml").read_text() == "<mujoco/>"
