@@ -18,6 +18,7 @@ PyG graph is made again once, at the end, when one of them changed it.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from robovae.data.features import FeatureSet
@@ -39,22 +40,23 @@ def decoded_fixes(graph: RobotTree, feature_set: str | FeatureSet, floating: boo
     steps = ([("floating_base", floating_base)] if floating else []) + \
         ([("mirror_limbs", mirror_limbs), ("complete_pairs", complete_pairs)] if mirror else []) \
         + [("slide_limited", slide_limited)]
-    arrays = TreeArrays.of(graph)
+    start = arrays = TreeArrays.of(graph)
     for name, fix in steps:
         arrays, changed = fix(arrays, feature_set)
         fixes += [name] if changed else []
     if isinstance(graph, TreeArrays) or not fixes:
         return (arrays if fixes else graph), fixes
-    return _as_graph(graph, arrays, feature_set), fixes
+    return _as_graph(graph, start, arrays, feature_set), fixes
 
 
-def _as_graph(graph: RobotData, arrays: TreeArrays, feature_set: str | FeatureSet) -> RobotData:
-    """The PyG graph of the fixed ``arrays`` of ``graph``: a copy of ``graph`` with the new
-    features when the tree is the same, else a graph built for the new tree."""
+def _as_graph(graph: RobotData, start: TreeArrays, arrays: TreeArrays,
+              feature_set: str | FeatureSet) -> RobotData:
+    """The PyG graph of ``arrays``, the fixed ``start`` (the arrays of ``graph``): a copy of
+    ``graph`` with the new features when the tree is the same, else a graph built for the new
+    tree."""
     x = torch.from_numpy(arrays.x)
-    if (arrays.parent.shape == tuple(graph.parent.shape)
-            and (arrays.parent == graph.parent.numpy()).all()
-            and (arrays.node_type == graph.node_type.numpy()).all()):
+    if (np.array_equal(arrays.parent, start.parent)
+            and np.array_equal(arrays.node_type, start.node_type)):
         out = graph.clone()
         out.x = x
         return out
