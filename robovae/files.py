@@ -9,27 +9,32 @@ optimisation logs are written with it.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 __all__ = ["atomic_write"]
+
+_ATTEMPTS = 100  # temporary names tried before giving up
 
 
 def atomic_write(path: str | os.PathLike, text: str, durable: bool = True) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically; returns ``path``.
 
-    The temporary file is ``.<name>.<pid>.tmp`` in ``path``'s folder, created exclusively with
-    mode 0600 (as ``tempfile.mkstemp`` would, at a third of its CPU cost; if that name is taken,
-    by a crashed writer of the same pid, ``mkstemp`` picks another), fsync'ed when ``durable``
-    (callers that sync a whole batch at once, e.g. with ``os.sync``, may skip it), then moved
-    onto ``path``. On any error the temporary file is removed and ``path`` is left as it was.
+    The temporary file is ``.<name>.<pid>.tmp`` in ``path``'s folder (``.<name>.<pid>.<k>.tmp``
+    when that name is taken, e.g. by a crashed writer of the same pid), created exclusively
+    with the mode an ordinary ``open`` gives (``0o666`` less the umask), fsync'ed when
+    ``durable`` (callers that sync a whole batch at once, e.g. with ``os.sync``, may skip it),
+    then moved onto ``path``. On any error the temporary file is removed and ``path`` is left
+    as it was.
     """
     path = Path(path)
-    tmp = str(path.parent / f".{path.name}.{os.getpid()}.tmp")
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    for k in range(_ATTEMPTS):
+        tmp = str(path.parent / f".{path.name}.{os.getpid()}{f'.{k}' if k else ''}.tmp")
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            break
+        except FileExistsError:
+            if k == _ATTEMPTS - 1:
+                raise
     try:
         try:
             data = text.encode("utf-8")

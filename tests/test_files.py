@@ -39,3 +39,12 @@ def test_a_stale_temporary_of_this_pid_is_not_touched(tmp_path):
     atomic_write(tmp_path / "robot.xml", "<mujoco/>")
     assert stale.read_text() == "stale"
     assert (tmp_path / "robot.xml").read_text() == "<mujoco/>"
+
+
+def test_files_get_the_mode_of_an_ordinary_open(tmp_path):
+    """Robot files and reports are for others to read too: ``0o666`` less the umask, as
+    ``open`` gives, not a temporary file's private 0600."""
+    atomic_write(tmp_path / "robot.xml", "<mujoco/>")
+    (tmp_path / "plain.xml").write_text("<mujoco/>")
+    mode = lambda name: (tmp_path / name).stat().st_mode & 0o777  # noqa: E731
+    assert mode("robot.xml") == mode("plain.xml")
