@@ -3,15 +3,16 @@
 :func:`atomic_write` puts text into a temporary file beside its destination and moves it into
 place with ``os.replace``: a reader (or a run continued after a crash) sees the old file or the
 new one, never half of one. Robot files, scene files, procedural robots, reports and
-optimisation logs are written with it.
+optimisation logs are written with it; :func:`atomic_json` writes a JSON document so.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
-__all__ = ["atomic_write"]
+__all__ = ["atomic_json", "atomic_write"]
 
 _ATTEMPTS = 100  # temporary names tried before giving up
 
@@ -50,3 +51,8 @@ def atomic_write(path: str | os.PathLike, text: str, durable: bool = True) -> Pa
             os.unlink(tmp)
         raise
     return path
+
+
+def atomic_json(path: str | os.PathLike, obj: object, durable: bool = True) -> Path:
+    """:func:`atomic_write` of ``obj`` as JSON (indented by one space); returns ``path``."""
+    return atomic_write(path, json.dumps(obj, indent=1), durable)

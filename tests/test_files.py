@@ -48,3 +48,10 @@ def test_files_get_the_mode_of_an_ordinary_open(tmp_path):
     (tmp_path / "plain.xml").write_text("<mujoco/>")
     mode = lambda name: (tmp_path / name).stat().st_mode & 0o777  # noqa: E731
     assert mode("robot.xml") == mode("plain.xml")
+
+
+def test_atomic_json_writes_the_document(tmp_path):
+    from robovae.files import atomic_json
+
+    path = atomic_json(tmp_path / "summary.json", {"valid": 1.0, "reasons": ["valid"]}, False)
+    assert path.read_text() == '{\n "valid": 1.0,\n "reasons": [\n  "valid"\n ]\n}'

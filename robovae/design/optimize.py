@@ -97,7 +97,7 @@ from robovae.design.results import (
 )
 from robovae.design.score import SCORE_VERSION, TASKS
 from robovae.errors import RobovaeError
-from robovae.files import atomic_write
+from robovae.files import atomic_json
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.generate.writer import WRITER as WRITTEN
 from robovae.model.checkpoint import own_model
@@ -138,10 +138,6 @@ def score_seeds(sets: int) -> list[int]:
     """The score seeds of a run with ``sets`` score sets: 0, then 9, 10, … (never one of the
     held-out seeds :data:`HELDOUT_SEEDS`, 1–8)."""
     return [0] + list(range(max(HELDOUT_SEEDS) + 1, max(HELDOUT_SEEDS) + sets))
-
-
-def _atomic_json(path: Path, obj: dict) -> None:
-    atomic_write(path, json.dumps(obj, indent=1))
 
 
 class _Run:
@@ -277,7 +273,7 @@ class _Run:
 
     def save(self) -> None:
         """Write ``log.json`` (atomically)."""
-        _atomic_json(self.out / LOG, self.log)
+        atomic_json(self.out / LOG, self.log)
 
     @torch.no_grad()
     def decode(self, zs: list[np.ndarray]) -> list:

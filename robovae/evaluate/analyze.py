@@ -31,7 +31,6 @@ names a folder.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Sequence
@@ -61,7 +60,7 @@ from robovae.evaluate.quality.populations import (
 )
 from robovae.evaluate.quality.report import contact_sheets, quality_table
 from robovae.evaluate.tables import format_table
-from robovae.files import atomic_write
+from robovae.files import atomic_json
 from robovae.generate.pipeline import read_manifest
 from robovae.model.checkpoint import load_model, read_checkpoint
 from robovae.model.vae import RoboVAE
@@ -330,7 +329,7 @@ def save_json(result: dict, path: str | Path) -> Path:
     """Write :func:`to_json` of ``result`` atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return atomic_write(path, json.dumps(to_json(result), indent=1), durable=False)
+    return atomic_json(path, to_json(result), durable=False)
 
 
 def _f(v, fmt: str = "{:.3g}") -> str:

@@ -44,8 +44,10 @@ def decoded_fixes(graph: RobotTree, feature_set: str | FeatureSet, floating: boo
     for name, fix in steps:
         arrays, changed = fix(arrays, feature_set)
         fixes += [name] if changed else []
-    if isinstance(graph, TreeArrays) or not fixes:
-        return (arrays if fixes else graph), fixes
+    if not fixes:
+        return graph, fixes
+    if isinstance(graph, TreeArrays):
+        return arrays, fixes
     return _as_graph(graph, start, arrays, feature_set), fixes
 
 

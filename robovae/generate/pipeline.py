@@ -44,7 +44,7 @@ from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
-from robovae.files import atomic_write
+from robovae.files import atomic_json
 from robovae.generate.build import build_robot, warm_up
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.writer import WRITER
@@ -80,7 +80,7 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
     has_robots = bool(read_manifest(out))
     if old == run or (old is None and not has_robots):
         if old is None:
-            _atomic_json(path, run)
+            atomic_json(path, run, durable=False)
         return
     if not overwrite:
         keys = list(run) + [k for k in (old or {}) if k not in run]
@@ -92,7 +92,7 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
             shutil.rmtree(item)
         elif re.fullmatch(r"manifest.*\.jsonl|summary\.json|run\.json", item.name):
             item.unlink()
-    _atomic_json(path, run)
+    atomic_json(path, run, durable=False)
 
 
 def writable(out: Path) -> None:
@@ -107,10 +107,6 @@ def writable(out: Path) -> None:
     except OSError as e:
         raise RobovaeError(f"robovae: {out}: cannot write robots there "
                            f"({e.strerror or type(e).__name__})") from None
-
-
-def _atomic_json(path: Path, obj: dict) -> None:
-    atomic_write(path, json.dumps(obj, indent=1), durable=False)
 
 
 def read_manifest(out: Path) -> dict[int, dict]:
@@ -443,5 +439,5 @@ def summarize(model: RoboVAE, out: Path, n: int, new: int, validate: bool,
         metrics.update(extra(everything))
     report = GenerationReport(out, len(everything), new, seconds,
                               dict(reasons), dict(rules), metrics)
-    _atomic_json(out / SUMMARY, report.to_dict())
+    atomic_json(out / SUMMARY, report.to_dict(), durable=False)
     return report
