@@ -43,6 +43,7 @@ from robovae.evaluate.descriptors import (
     VECTOR_DESCRIPTORS,
     descriptor_table,
 )
+from robovae.evaluate.distances import kth_nearest, sqdist
 
 __all__ = ["compare", "coverage", "gaussian_entropy", "histogram_kl", "knn_entropy",
            "latent_stats", "ledoit_wolf", "mmd_rbf", "participation_ratio", "pca", "standardize",
@@ -125,33 +126,6 @@ def histogram_kl(p: Sequence[float], q: Sequence[float], bins: int | np.ndarray 
     return float(np.sum(pa * np.log(pa / pb)))
 
 
-def _sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Squared Euclidean distances ``|a_i|² + |b_j|² − 2 a_i·b_j`` (floored at 0), built in
-    place: one ``[len(a), len(b)]`` matrix of memory, no temporaries of its size."""
-    d = a @ b.T
-    d *= -2.0
-    d += (a * a).sum(1)[:, None]
-    d += (b * b).sum(1)[None, :]
-    return np.maximum(d, 0.0, out=d)
-
-
-#: Rows of a pairwise block held at once by the nearest-neighbour searches (memory
-#: ``ROWS × N`` floats).
-ROWS = 512
-
-
-def _kth_nearest(x: np.ndarray, k: int) -> np.ndarray:
-    """Distance from each row of ``x`` to its ``k``-th nearest other row, in blocks of
-    :data:`ROWS` rows."""
-    out = np.empty(len(x))
-    for start in range(0, len(x), ROWS):
-        block = _sqdist(x[start:start + ROWS], x)
-        rows = np.arange(block.shape[0])
-        block[rows, start + rows] = np.inf  # a point is not its own neighbour
-        out[start:start + block.shape[0]] = np.partition(block, k - 1, axis=1)[:, k - 1]
-    return np.sqrt(out)  # the square root is monotone: the k-th of the squares is the k-th
-
-
 def _median_distance(d2: np.ndarray) -> float:
     """Median of the distances above the diagonal of a square matrix of squared distances,
     gathered row by row into one buffer (half the matrix) instead of through index arrays."""
@@ -189,7 +163,7 @@ def mmd_rbf(x: np.ndarray, y: np.ndarray, bandwidth: float | None = None,
     if n < 2 or m < 2:
         return {"mmd2": math.nan, "bandwidth": math.nan, "p_value": math.nan}
     z = np.concatenate([x, y])
-    k = _sqdist(z, z)  # the one [n + m]² matrix: squared distances, then the kernel in place
+    k = sqdist(z, z)  # the one [n + m]² matrix: squared distances, then the kernel in place
     if bandwidth is None:
         med = _median_distance(k)
         bandwidth = med if med > 0 else 1.0
@@ -235,9 +209,9 @@ def coverage(train: np.ndarray, samples: np.ndarray, threshold: float | None = N
         return {"coverage": math.nan, "precision": math.nan, "threshold": math.nan,
                 "mean_nearest_sample": math.nan}
     if threshold is None:
-        threshold = (float(np.median(_kth_nearest(train, 1)))
+        threshold = (float(np.median(kth_nearest(train, 1)))
                      if len(train) >= 2 else 1.0)
-    d = np.sqrt(_sqdist(train, samples))
+    d = np.sqrt(sqdist(train, samples))
     nearest_sample = d.min(1)
     nearest_train = d.min(0)
     return {"coverage": float((nearest_sample <= threshold).mean()),
@@ -307,7 +281,7 @@ def knn_entropy(x: np.ndarray, k: int = 3, min_distance: float = 1e-9) -> float:
     if n < 2 or d == 0:
         return math.nan
     k = max(1, min(k, n - 1))
-    eps = np.maximum(_kth_nearest(x, k), min_distance)
+    eps = np.maximum(kth_nearest(x, k), min_distance)
     log_vd = 0.5 * d * math.log(math.pi) - math.lgamma(0.5 * d + 1.0)
     return float(_digamma(n) - _digamma(k) + log_vd + d * np.mean(np.log(eps)))
 

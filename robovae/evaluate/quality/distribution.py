@@ -25,6 +25,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from robovae.evaluate.distances import kth_nearest, sqdist
+
 __all__ = ["knn_radii", "precision_recall", "split_half", "wasserstein_1d"]
 
 
@@ -62,20 +64,13 @@ def split_half(x: Sequence[float] | np.ndarray, repeats: int = 20, seed: int = 0
     return float(np.mean(out))
 
 
-def _dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    d2 = (a * a).sum(1)[:, None] + (b * b).sum(1)[None] - 2 * a @ b.T
-    return np.sqrt(np.maximum(d2, 0.0))
-
-
 def knn_radii(x: np.ndarray, k: int = 3) -> np.ndarray:
     """Distance from each row of ``x`` to its k-th nearest other row (``k`` capped at
     ``len(x) - 1``; a single point gets radius 0)."""
     n = len(x)
     if n < 2:
         return np.zeros(n)
-    d = _dist(x, x)
-    k = min(k, n - 1)
-    return np.sort(d, axis=1)[:, k]  # column 0 is the point itself
+    return kth_nearest(np.asarray(x, dtype=float), min(k, n - 1))
 
 
 def precision_recall(reference: np.ndarray, samples: np.ndarray, k: int = 3
@@ -92,7 +87,7 @@ def precision_recall(reference: np.ndarray, samples: np.ndarray, k: int = 3
                          "descriptor columns")
     if not len(reference) or not len(samples):
         return float("nan"), float("nan")
-    d = _dist(samples, reference)  # [m, n]
+    d = np.sqrt(sqdist(samples, reference))  # [m, n]
     r_ref, r_samples = knn_radii(reference, k), knn_radii(samples, k)
     precision = float(np.mean((d <= r_ref[None]).any(1)))  # sample in a reference ball
     recall = float(np.mean((d <= r_samples[:, None]).any(0)))  # reference in a sample ball
