@@ -41,6 +41,7 @@ from robovae.model.latent_mixture import LatentMixture, fit_to_robots
 from robovae.model.loss import vae_loss
 from robovae.model.messages import level_messages
 from robovae.model.prior import draw_robots
+from robovae.model.records import from_columns, to_columns
 from robovae.model.sampling import PriorSampling
 from robovae.model.tree import TreeSchedule, tree_schedule
 
@@ -167,13 +168,15 @@ class RoboVAE(PriorSampling, L.LightningModule):
 
     def on_save_checkpoint(self, checkpoint: dict) -> None:
         """Keep the training robots' records (names, duplicate keys, descriptors: plain
-        strings and numbers) so generation can measure novelty from the checkpoint alone."""
-        checkpoint["robovae_training_robots"] = self.training_robots
+        strings and numbers) so generation can measure novelty from the checkpoint alone,
+        stored column by column (:func:`robovae.model.records.to_columns`: quick to load)."""
+        checkpoint["robovae_training_robots"] = to_columns(self.training_robots)
 
     def on_load_checkpoint(self, checkpoint: dict) -> None:
-        """Restore the training robots' records saved by :meth:`on_save_checkpoint`; a
-        checkpoint from before the latent mixture loads with the mixture unfitted."""
-        self.training_robots = checkpoint.get("robovae_training_robots", [])
+        """Restore the training robots' records saved by :meth:`on_save_checkpoint` (or the
+        plain list of an earlier version); a checkpoint from before the latent mixture loads
+        with the mixture unfitted."""
+        self.training_robots = from_columns(checkpoint.get("robovae_training_robots"))
         state = checkpoint.get("state_dict", {})
         if self.latent_mixture is not None and "latent_mixture.fitted" not in state:
             state.update({f"latent_mixture.{k}": v

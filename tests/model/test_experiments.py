@@ -14,6 +14,7 @@ import yaml
 from robovae.evaluate import experiment_tables
 from robovae.evaluate import experiments as ex
 from robovae.model.checkpoint import load_model
+from robovae.model.records import from_columns
 from tests.conftest import REPO
 
 
@@ -151,7 +152,9 @@ def test_zeroshot_and_finetune_on_the_17(trained, tmp_path, menagerie_dir, cache
         assert "**mean over robots**" in table and "go2" in table
     trained_on = tmp_path / "go2.ckpt"
     data = torch.load(ckpt, weights_only=True)
-    data["robovae_training_robots"] = [*data["robovae_training_robots"], {"name": "go2"}]
+    # an earlier version's plain list of records, one of them go2
+    data["robovae_training_robots"] = [*from_columns(data["robovae_training_robots"]),
+                                       {"name": "go2"}]
     torch.save(data, trained_on)
     with pytest.raises(ValueError, match="trained on \\['go2'\\]"):
         zeroshot(trained_on, "leaky", menagerie_dir, tmp_path, cache_root)
