@@ -231,8 +231,8 @@ def test_a_worker_scores_candidates_without_torch(tmp_path):
     """What a worker process of ``robovae optimize`` does (:func:`robovae.design.candidates.
     evaluate`), in a fresh interpreter given pickled items: a decoded-and-fixed graph as
     :class:`TreeArrays` and a procedural robot's MJCF text are written, scored as in this
-    process and deleted, and neither torch nor PyG is ever imported; a graph the writer cannot
-    take scores 0 with a one-line error."""
+    process and deleted, and neither torch, PyG nor ``cmaes`` is ever imported; a graph the
+    writer cannot take scores 0 with a one-line error."""
     import pickle
     import subprocess
     import sys
@@ -254,7 +254,8 @@ def test_a_worker_scores_candidates_without_torch(tmp_path):
         "from robovae.design.candidates import evaluate\n"
         f"items = pickle.loads(open({str(tmp_path / 'items.pkl')!r}, 'rb').read())\n"
         "print(json.dumps({'results': [evaluate(x) for x in items],\n"
-        "  'loaded': [m for m in ('torch', 'torch_geometric') if m in sys.modules]}))\n")
+        "  'loaded': [m for m in ('torch', 'torch_geometric', 'cmaes', 'scipy.stats')\n"
+        "             if m in sys.modules]}))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          check=True)
     got = json.loads(out.stdout.strip().splitlines()[-1])

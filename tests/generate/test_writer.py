@@ -446,8 +446,8 @@ def test_tree_arrays_write_the_same_robot(fs, tmp_path):
 def test_a_worker_writes_validates_and_measures_without_torch(tmp_path):
     """What a worker process of ``robovae generate`` does with one robot (write, validate,
     measure: :func:`~robovae.generate.build.build_robot`), in a fresh interpreter given the
-    graph as pickled :class:`TreeArrays`: the robot is valid and measured, and neither torch
-    nor PyG is ever imported."""
+    graph as pickled :class:`TreeArrays`: the robot is valid and measured, and neither torch,
+    PyG nor ``cmaes`` (with SciPy's stats, 0.7 s to import) is ever imported."""
     import pickle
     import subprocess
     import sys
@@ -463,7 +463,8 @@ def test_a_worker_writes_validates_and_measures_without_torch(tmp_path):
         f"rec = build_robot(pickle.loads(open({str(tmp_path / 'item.pkl')!r}, 'rb').read()))\n"
         "print(json.dumps({'valid': rec['valid'], 'quality': 'quality' in rec,\n"
         "  'error': rec.get('quality', {}).get('error'),\n"
-        "  'loaded': [m for m in ('torch', 'torch_geometric') if m in sys.modules]}))\n")
+        "  'loaded': [m for m in ('torch', 'torch_geometric', 'cmaes', 'scipy.stats')\n"
+        "             if m in sys.modules]}))\n")
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          check=True, cwd=REPO)
     rec = __import__("json").loads(out.stdout.strip().splitlines()[-1])

@@ -29,7 +29,6 @@ than ``N``.
 from __future__ import annotations
 
 import numpy as np
-from cmaes import CMA
 
 from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, gait, random_gaits
 from robovae.evaluate.quality.stage import Robot
@@ -79,6 +78,8 @@ def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: 
     bounds = np.concatenate([np.tile([0.0, 1.0], (nu, 1)),
                              np.tile([-_PHASE_TURNS, _PHASE_TURNS], (nu, 1)), [[0.0, 1.0]],
                              np.tile([-1.0, 1.0], (len(cont), 1))])
+    from cmaes import CMA  # here: its import (SciPy's stats) costs every worker 0.7 s
+
     optimizer = CMA(mean=mean, sigma=step, bounds=bounds, population_size=population,
                     seed=seed)
     for _ in range(generations):
