@@ -78,7 +78,8 @@ def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: 
     bounds = np.concatenate([np.tile([0.0, 1.0], (nu, 1)),
                              np.tile([-_PHASE_TURNS, _PHASE_TURNS], (nu, 1)), [[0.0, 1.0]],
                              np.tile([-1.0, 1.0], (len(cont), 1))])
-    from cmaes import CMA  # here: its import (SciPy's stats) costs every worker 0.7 s
+    # imported here: cmaes imports SciPy's stats, a second of every worker's start
+    from cmaes import CMA
 
     optimizer = CMA(mean=mean, sigma=step, bounds=bounds, population_size=population,
                     seed=seed)
