@@ -1,18 +1,22 @@
-"""Files written whole or not at all.
+"""Files written whole or not at all, and robot files found in folders.
 
 :func:`atomic_write` puts text into a temporary file beside its destination and moves it into
 place with ``os.replace``: a reader (or a run continued after a crash) sees the old file or the
 new one, never half of one. Robot files, scene files, procedural robots, reports and
 optimisation logs are written with it; :func:`atomic_json` writes a JSON document so.
+:func:`robot_files` lists the robot files that commands given files and folders work on.
 """
 
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["atomic_json", "atomic_write"]
+from robovae.errors import RobovaeError
+
+__all__ = ["atomic_json", "atomic_write", "robot_files"]
 
 _ATTEMPTS = 100  # temporary names tried before giving up
 
@@ -56,3 +60,25 @@ def atomic_write(path: str | os.PathLike, text: str, durable: bool = True) -> Pa
 def atomic_json(path: str | os.PathLike, obj: object, durable: bool = True) -> Path:
     """:func:`atomic_write` of ``obj`` as JSON (indented by one space); returns ``path``."""
     return atomic_write(path, json.dumps(obj, indent=1), durable)
+
+
+def robot_files(paths: Sequence[str | os.PathLike]) -> list[Path]:
+    """Robot files from files and folders, in the order given: a file as it is; a folder's
+    ``robot.xml`` (one robot's folder, as ``robovae generate`` and ``optimize`` write them),
+    else its ``robot_*/robot.xml`` (a ``generate`` folder), else its ``*/robot.xml`` (e.g. an
+    ``optimize`` run's ``best/<method>``), else its ``*.xml``; each list sorted.
+
+    Raises:
+        RobovaeError: a path that is neither a file nor a folder (one line).
+    """
+    found: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found += ([p / "robot.xml"] if (p / "robot.xml").is_file() else
+                      sorted(p.glob("robot_*/robot.xml")) or sorted(p.glob("*/robot.xml"))
+                      or sorted(p.glob("*.xml")))
+        elif p.is_file():
+            found.append(p)
+        else:
+            raise RobovaeError(f"robovae: {p}: no such file or folder")
+    return found

@@ -7,7 +7,8 @@ import os
 import pytest
 
 from robovae import files
-from robovae.files import atomic_write
+from robovae.errors import RobovaeError
+from robovae.files import atomic_write, robot_files
 
 
 @pytest.mark.parametrize("durable", [True, False])
@@ -55,3 +56,24 @@ def test_atomic_json_writes_the_document(tmp_path):
 
     path = atomic_json(tmp_path / "summary.json", {"valid": 1.0, "reasons": ["valid"]}, False)
     assert path.read_text() == '{\n "valid": 1.0,\n "reasons": [\n  "valid"\n ]\n}'
+
+
+def test_robot_files_from_files_and_folders(tmp_path):
+    """A robot's folder gives its robot.xml (not its scene.xml), a generate folder its
+    robot_*/robot.xml, an optimize run's best/<method> its rank_*/robot.xml, any other folder
+    its *.xml; a missing path is one line."""
+    for folder in ("gen/robot_000001", "gen/robot_000000", "best/cma/rank_0", "best/cma/rank_1"):
+        (tmp_path / folder).mkdir(parents=True)
+        for name in ("robot.xml", "scene.xml"):
+            (tmp_path / folder / name).write_text("<mujoco/>")
+    (tmp_path / "loose").mkdir()
+    for name in ("b.xml", "a.xml"):
+        (tmp_path / "loose" / name).write_text("<mujoco/>")
+    found = robot_files([tmp_path / "gen/robot_000001", tmp_path / "gen", tmp_path / "best/cma",
+                         tmp_path / "loose", tmp_path / "loose/b.xml"])
+    assert [str(p.relative_to(tmp_path)) for p in found] == [
+        "gen/robot_000001/robot.xml", "gen/robot_000000/robot.xml", "gen/robot_000001/robot.xml",
+        "best/cma/rank_0/robot.xml", "best/cma/rank_1/robot.xml", "loose/a.xml", "loose/b.xml",
+        "loose/b.xml"]
+    with pytest.raises(RobovaeError, match=r"nope: no such file or folder$"):
+        robot_files([tmp_path / "nope"])

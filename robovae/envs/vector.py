@@ -30,14 +30,16 @@ from gymnasium import spaces
 
 from robovae.envs.walk import ROOT_DIM, Layout, WalkEnv
 from robovae.errors import RobovaeError
+from robovae.files import robot_files as find_robot_files
 
 __all__ = ["PadObsAction", "action_mask", "make_vector_env", "obs_mask", "pad_obs",
            "padded_layout", "robot_files"]
 
 
 def robot_files(source: str | os.PathLike | Sequence[str | os.PathLike]) -> list[Path]:
-    """Robot files of a folder written by ``robovae generate`` (``robot_*/robot.xml``, in
-    order), of a folder of ``*.xml`` files, or a list of files as given.
+    """Robot files of a folder (:func:`robovae.files.robot_files`: a folder written by
+    ``robovae generate`` gives its ``robot_*/robot.xml`` in order, a folder of ``*.xml`` files
+    those), or a list of files as given.
 
     Raises:
         RobovaeError: the folder holds no robot file, or a listed file does not exist.
@@ -46,9 +48,10 @@ def robot_files(source: str | os.PathLike | Sequence[str | os.PathLike]) -> list
         folder = Path(source)
         if not folder.is_dir():
             raise RobovaeError(f"robovae: {folder}: not a folder of robots")
-        files = sorted(folder.glob("robot_*/robot.xml")) or sorted(folder.glob("*.xml"))
+        files = find_robot_files([folder])
         if not files:
-            raise RobovaeError(f"robovae: {folder}: no robot_*/robot.xml or *.xml files")
+            raise RobovaeError(f"robovae: {folder}: no robot files (robot.xml, robot_*/robot.xml, "
+                               "*/robot.xml or *.xml)")
         return files
     files = [Path(p) for p in source]
     missing = [str(p) for p in files if not p.is_file()]

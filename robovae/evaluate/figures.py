@@ -12,6 +12,7 @@ from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.graph_drawing import draw_graph
 from robovae.evaluate.metrics import reconstruction_metrics
 from robovae.evaluate.render import contact_sheet, side_by_side
+from robovae.files import robot_files
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
@@ -48,20 +49,6 @@ def reconstruction_figure(model: RoboVAE | str | Path, robot: str | Path,
     plt.close(fig)
     return {"image": out, "graphs": graphs, "ra": res.ra, "ra_true": res.ra_true,
             "exact": res.exact, "fre": res.fre}
-
-
-def robot_files(paths: Sequence[str | Path]) -> list[Path]:
-    """Robot files from files and folders (a generation folder gives ``robot_*/robot.xml``)."""
-    found: list[Path] = []
-    for p in map(Path, paths):
-        if p.is_dir():
-            robots = sorted(p.glob("robot_*/robot.xml")) or sorted(p.glob("*.xml"))
-            found += robots
-        elif p.is_file():
-            found.append(p)
-        else:
-            raise RobovaeError(f"robovae: {p}: no such file or folder")
-    return found
 
 
 def sample_sheet(paths: Sequence[str | Path], out: str | Path, first: int = 20,

@@ -218,7 +218,7 @@ def test_robot_files_of_a_generate_folder(tmp_path, robots):
         (tmp_path / f"robot_{i:06d}" / "robot.xml").write_text(Path(robots[i]).read_text())
     assert [p.parent.name for p in robot_files(tmp_path)] == ["robot_000000", "robot_000001"]
     (tmp_path / "empty").mkdir()
-    with pytest.raises(RobovaeError, match="no robot_"):
+    with pytest.raises(RobovaeError, match=r"empty: no robot files \(robot.xml, robot_"):
         robot_files(tmp_path / "empty")
     with pytest.raises(RobovaeError, match="not a folder"):
         robot_files(tmp_path / "missing")

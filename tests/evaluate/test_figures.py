@@ -7,7 +7,8 @@ from matplotlib import image as mpimg
 
 from robovae.cli import main
 from robovae.data.zoo import zoo_files
-from robovae.evaluate.figures import reconstruction_figure, robot_files
+from robovae.evaluate.figures import reconstruction_figure
+from robovae.files import robot_files
 from robovae.generate.pipeline import generate
 
 
