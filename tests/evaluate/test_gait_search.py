@@ -74,3 +74,42 @@ def test_a_budget_is_spent_by_random_gaits_or_by_a_quarter_of_them_tuned() -> No
     for bad in ({"search": "grid"}, {"rollouts": 0}):
         with pytest.raises(ValueError, match="budget_gait"):
             budget_gait(quad, **{"seconds": 2.0, **bad})
+
+
+def test_gaits_held_and_from_noisy_starts_score_the_median_over_the_starts() -> None:
+    """``hold`` holds each control for that many physics steps; after ``perturb`` a gait's
+    speed is the median of its speeds from each start, the first start the rest state and
+    the others it with noise on the given coordinates only; the search judges every gait so."""
+    robot = procedural_spec(2, "quadruped")
+    plain, held = GaitTrials(robot, seconds=2.0), GaitTrials(robot, seconds=2.0, hold=5)
+    nu = held.model.nu
+    amp, phase, freq, offset = (np.random.default_rng(4).uniform(0, 1, (3, nu)),
+                                np.random.default_rng(5).uniform(0, 6, (3, nu)),
+                                np.array([1.0, 1.5, 2.0]), np.zeros((3, nu)))
+    assert held.run(amp, phase, freq, offset)[0].tolist() != \
+        plain.run(amp, phase, freq, offset)[0].tolist()
+    qpos, qvel = np.arange(7, held.model.nq), np.arange(6, held.model.nv)  # the legs' joints
+    held.perturb(qpos, qvel, 3, 0.05, seed=0)
+    s0 = held.state0
+    assert held.starts.shape == (3, len(s0)) and np.array_equal(held.starts[0], s0)
+    changed = np.flatnonzero(held.starts[1] != s0)  # state: time, qpos, qvel, ...
+    assert set(changed) <= {1 + i for i in qpos} | {1 + held.model.nq + i for i in qvel}
+    assert len(changed) == len(qpos) + len(qvel)
+    speeds, _, (states, _, _) = held.run(amp, phase, freq, offset)
+    each = []
+    for start in held.starts:
+        one = GaitTrials(robot, seconds=2.0, hold=5)
+        one.starts = start[None]
+        each.append(one.run(amp, phase, freq, offset)[0])
+    assert speeds == pytest.approx(np.median(each, axis=0), rel=1e-12)
+    b = int(np.argmax(speeds))  # its rollout reported for the power: from the rest state
+    first = GaitTrials(robot, seconds=2.0, hold=5)
+    assert np.array_equal(states, first.run(amp[b:b + 1], phase[b:b + 1], freq[b:b + 1],
+                                            offset[b:b + 1])[2][0])
+    again = GaitTrials(robot, seconds=2.0, hold=5)
+    again.perturb(qpos, qvel, 3, 0.05, seed=0)
+    assert np.array_equal(again.starts, held.starts)
+    with pytest.raises(ValueError, match="hold must be at least 1"):
+        GaitTrials(robot, hold=0)
+    with pytest.raises(ValueError, match="count must be at least 1"):
+        held.perturb(qpos, qvel, 0, 0.05, seed=0)

@@ -33,7 +33,7 @@ import numpy as np
 from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, gait, random_gaits
 from robovae.evaluate.quality.stage import Robot
 
-__all__ = ["GAIT_SEARCHES", "budget_gait", "searched_gait"]
+__all__ = ["GAIT_SEARCHES", "budget_gait", "searched_gait", "trials_search"]
 
 #: Bound of the phases, in turns: the search needs bounds, a phase is periodic.
 _PHASE_TURNS = 10.0
@@ -58,10 +58,28 @@ def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: 
             ``step`` not > 0.
         RobovaeError: a model without a floor; RobotFileError: a file that does not load.
     """
+    _check(rollouts, refine, population, step)
+    return trials_search(GaitTrials(robot, seconds, settle, max_steps, max_tilt), rollouts,
+                         refine, seed, frequency, population, step)
+
+
+def _check(rollouts: int, refine: int, population: int, step: float) -> None:
     if rollouts < 1 or refine < 0 or population < 2 or not step > 0:
         raise ValueError(f"searched_gait: rollouts ({rollouts}) must be >= 1, refine "
                          f"({refine}) >= 0, population ({population}) >= 2, step ({step}) > 0")
-    trials = GaitTrials(robot, seconds, settle, max_steps, max_tilt)
+
+
+def trials_search(trials: GaitTrials, rollouts: int = 16, refine: int = 496, seed: int = 0,
+                  frequency: tuple[float, float] = (0.5, 3.0), population: int = 16,
+                  step: float = 0.3) -> GaitResult:
+    """:func:`searched_gait` on a robot's trials already set up (a ``hold``, starts from
+    :meth:`~robovae.evaluate.quality.locomotion.GaitTrials.perturb`): every gait, random or of
+    CMA-ES, is judged by :meth:`~robovae.evaluate.quality.locomotion.GaitTrials.run`.
+
+    Raises:
+        ValueError: as :func:`searched_gait`.
+    """
+    _check(rollouts, refine, population, step)
     nu = trials.model.nu
     generations = refine // population
     if nu == 0 or trials.actuated_base:

@@ -184,14 +184,20 @@ class GaitTrials:
     through one, :func:`~robovae.evaluate.quality.gait_search.searched_gait` its CMA-ES
     generations. ``settle``: the share of each rollout before the distance counts;
     ``max_tilt``: degrees past which a gait has fallen (None: falls are not checked);
-    ``max_steps`` caps the steps per rollout.
+    ``max_steps`` caps the steps per rollout; ``hold``: each control is held for this many
+    physics steps (the gait's value at the first step of each block: as an environment with
+    ``frame_skip = hold`` applies a policy's actions; 1: a control at every step).
+    :meth:`perturb` makes every gait start from several states and score the median speed.
 
     Raises:
         RobovaeError: a model without a floor; RobotFileError: a file that does not load.
     """
 
     def __init__(self, robot: Robot, seconds: float = 4.0, settle: float = 0.25,
-                 max_steps: int = 2_000, max_tilt: float | None = None) -> None:
+                 max_steps: int = 2_000, max_tilt: float | None = None, hold: int = 1) -> None:
+        if hold < 1:
+            raise ValueError(f"GaitTrials: hold must be at least 1, not {hold}")
+        self.hold = int(hold)
         st = stage(robot)
         self.model, self.root, self.extent, self.floor_z = st.model, st.root, st.extent, \
             st.floor_z
@@ -213,6 +219,8 @@ class GaitTrials:
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         self.state0 = np.empty(mujoco.mj_stateSize(model, spec))
         mujoco.mj_getState(model, data, self.state0, spec)
+        #: ``[K, state]``: the states every gait starts from (:meth:`perturb`)
+        self.starts = self.state0[None]
         steps = self.steps
         self.first = min(int(settle * steps), steps - 1)  # state index where distance starts
         self.span = (steps - 1 - self.first) * dt if self.first < steps - 1 else steps * dt
@@ -222,43 +230,77 @@ class GaitTrials:
         """Simulated seconds per rollout."""
         return self.steps * self.model.opt.timestep
 
+    def perturb(self, qpos: np.ndarray, qvel: np.ndarray, count: int, scale: float,
+                seed: int) -> None:
+        """Start every gait of :meth:`run` from ``count`` states: the rest state and ``count -
+        1`` copies of it with the noise of ``robovae/Walk-v0``'s reset (:class:`~robovae.envs.
+        walk.WalkEnv`: ``U(-scale, scale)`` added to the positions ``qpos`` (indices into
+        ``qpos``), ``scale · N(0, 1)`` to the velocities ``qvel``), drawn from
+        ``numpy.random.default_rng([seed, 1])`` (a stream apart from :func:`random_gaits`'
+        of the same seed); a gait's speed is then its median over them."""
+        if count < 1:
+            raise ValueError(f"GaitTrials.perturb: count must be at least 1, not {count}")
+        model, data = self.model, self.data
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        rng = np.random.default_rng([seed, 1])
+        starts = [self.state0]
+        for _ in range(count - 1):
+            mujoco.mj_setState(model, data, self.state0, spec)
+            data.qpos[qpos] += rng.uniform(-scale, scale, len(qpos))
+            data.qvel[qvel] += scale * rng.standard_normal(len(qvel))
+            starts.append(np.empty_like(self.state0))
+            mujoco.mj_getState(model, data, starts[-1], spec)
+        mujoco.mj_setState(model, data, self.state0, spec)
+        quiet_forward(model, data)
+        self.starts = np.array(starts)
+
     def run(self, amplitude: np.ndarray, phase: np.ndarray, frequency: np.ndarray,
             offset: np.ndarray) -> tuple[np.ndarray, int, tuple[np.ndarray, np.ndarray, int]]:
         """Roll out ``R`` gaits (``amplitude``, ``phase``, ``offset`` ``[R, nu]``,
-        ``frequency`` ``[R]`` Hz) in one ``mujoco.rollout`` call: their horizontal root speeds
-        (m/s) ``[R]``, 0 for a rollout that went unstable, fell through the floor, flew or fell
-        before the distance counts; the number of unstable, sunk or flying rollouts; and the
-        best rollout's ``(states, controls, last counted state)``, for its power."""
-        model, data, root = self.model, self.data, self.root
+        ``frequency`` ``[R]`` Hz) from each start (``K``: one unless :meth:`perturb`) in one
+        ``mujoco.rollout`` call: their horizontal root speeds (m/s) ``[R]``, the median over
+        the starts, a rollout scoring 0 when it went unstable, fell through the floor, flew or
+        fell before the distance counts; the number of unstable, sunk or flying rollouts; and
+        the best gait's rollout from the first start ``(states, controls, last counted
+        state)``, for its power."""
+        model, data = self.model, self.data
         ctrl = sinusoid_controls(model, amplitude, phase, frequency, self.steps, offset)
+        if self.hold > 1:
+            ctrl = ctrl[:, np.arange(self.steps) // self.hold * self.hold]
+        k = len(self.starts)
+        if k > 1:  # gait-major: rollout r * k + j is gait r from start j
+            ctrl = np.repeat(ctrl, k, axis=0)
+        init = np.tile(self.starts, (len(frequency), 1)) if k > 1 else self.starts
         with capture_mujoco_warnings():
-            states, _ = rollout.rollout(model, data, self.state0[None], ctrl, nstep=self.steps)
-        rollouts = len(frequency)
-        speeds = np.zeros(rollouts)
-        lasts = np.zeros(rollouts, dtype=int)
+            states, _ = rollout.rollout(model, data, init, ctrl, nstep=self.steps)
+        speeds = np.zeros(len(ctrl))
+        lasts = np.zeros(len(ctrl), dtype=int)
         bad = 0
-        for r in range(rollouts):
-            s = states[r]
-            if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
-                bad += 1
-                continue
-            if _root_pos(model, data, s[-1, 1:1 + model.nq], root)[2] < \
-                    self.floor_z - self.extent:
-                bad += 1  # fell through the floor (no collision geoms)
-                continue
-            fell, flew = _scan(model, data, s, root, self.bodies, self.up_local,
-                               self.cos_tilt, self.com_limit)
-            if flew:
-                bad += 1  # a leap or numerical energy: not walking
-                continue
-            last = len(s) - 1 if fell is None else fell
-            if last <= self.first:  # fell before the distance counts
-                continue
-            start = _root_pos(model, data, s[self.first, 1:1 + model.nq], root)
-            end = _root_pos(model, data, s[last, 1:1 + model.nq], root)
-            speeds[r], lasts[r] = float(np.linalg.norm((end - start)[:2])) / self.span, last
-        best = int(np.argmax(speeds))
-        return speeds, bad, (states[best], ctrl[best], int(lasts[best]))
+        for r in range(len(ctrl)):
+            speeds[r], lasts[r], failed = self._speed(states[r])
+            bad += failed
+        median = np.median(speeds.reshape(-1, k), axis=1)
+        best = int(np.argmax(median)) * k
+        return median, bad, (states[best], ctrl[best], int(lasts[best]))
+
+    def _speed(self, s: np.ndarray) -> tuple[float, int, bool]:
+        """One rollout's states ``s``: its speed (m/s), last counted state and whether it went
+        unstable, sank or flew (:meth:`run`)."""
+        model, data, root = self.model, self.data, self.root
+        if not np.isfinite(s).all() or np.any(np.diff(s[:, 0]) <= 0):
+            return 0.0, 0, True
+        if _root_pos(model, data, s[-1, 1:1 + model.nq], root)[2] < self.floor_z - self.extent:
+            return 0.0, 0, True  # fell through the floor (no collision geoms)
+        fell, flew = _scan(model, data, s, root, self.bodies, self.up_local, self.cos_tilt,
+                           self.com_limit)
+        if flew:
+            return 0.0, 0, True  # a leap or numerical energy: not walking
+        last = len(s) - 1 if fell is None else fell
+        if last <= self.first:  # fell before the distance counts
+            return 0.0, 0, False
+        start = _root_pos(model, data, s[self.first, 1:1 + model.nq], root)
+        end = _root_pos(model, data, s[last, 1:1 + model.nq], root)
+        return float(np.linalg.norm((end - start)[:2])) / self.span, last, False
 
     def power(self, best: tuple[np.ndarray, np.ndarray, int]) -> float:
         """Mean mechanical power (W) of a rollout ``(states, controls, last counted state)``
