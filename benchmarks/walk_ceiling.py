@@ -26,23 +26,14 @@ METHODS = ("cma", "prior", "procedural")
 
 
 def searched(task: tuple[str, int]) -> tuple[float, int]:
-    """Searched walk speed (body lengths per second) of one robot file and the rollouts used,
-    in the walk score's scene with its settings (the defaults of ``walk_score``: trials,
-    seconds, settle, max_tilt) and score seed 0."""
-    import inspect
-
-    from robovae.design.score import walk_score
-    from robovae.envs.walk import walk_scene
-    from robovae.evaluate.quality.gait_search import searched_gait
+    """Searched walk speed (body lengths per second) of one robot file and the rollouts used:
+    ``robovae.design.score.walk_gait`` with ``refine`` (the walk score's scene, settings and
+    score seed 0, then CMA-ES; what ``robovae gait`` writes)."""
+    from robovae.design.score import walk_gait
 
     path, refine = task
-    walk = {k: p.default for k, p in inspect.signature(walk_score).parameters.items()
-            if p.default is not inspect.Parameter.empty}
-    _, scene = walk_scene(path)
-    r = searched_gait(scene.model, rollouts=walk["trials"], refine=refine,
-                      seconds=walk["seconds"], seed=0, settle=walk["settle"] / walk["seconds"],
-                      max_tilt=walk["max_tilt"])
-    return r.speed, r.rollouts
+    g = walk_gait(path, refine=refine)
+    return g["score"], g["rollouts"]
 
 
 def main() -> None:

@@ -4,6 +4,7 @@
 ``robovae generate``   sample robots from a checkpoint, write MJCF, validate, report;
 ``robovae interpolate`` robots on the latent line between two robots, with a contact sheet;
 ``robovae optimize``   CMA-ES over the latent space for walk / step / stand / reach, with baselines;
+``robovae gait``       an open-loop gait tuned to each robot's body, for ``robovae/Walk-v0``;
 ``robovae render``     PNG contact sheets and original-vs-reconstruction pictures;
 ``robovae analyze``    statistics of the design space: descriptors, KL/MMD/coverage, latent
                        entropy, MuJoCo state entropy and standing test;
@@ -125,7 +126,29 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     print(f"log: {res['log']}, convergence: {res['plot']}, best robots: {args.out}/best/")
     if gaits:  # robovae.design.results
         print(f"each best robot's gait: {args.out}/best/<method>/rank_<k>/gait.json "
-              "(replay in robovae/Walk-v0: robovae.envs.gait)")
+              "(replay in robovae/Walk-v0: robovae.envs.gait); gaits tuned to the bodies: "
+              f"robovae gait {args.out}/best/<method>")
+    return 0
+
+
+def cmd_gait(args: argparse.Namespace) -> int:
+    """Tune each robot's open-loop gait (walk score's search + CMA-ES) and write it."""
+    from robovae.design.gaits import tune_gaits
+    from robovae.files import robot_files
+
+    files = robot_files(args.paths)
+    res = tune_gaits(files, refine=args.refine, seed=args.seed, step=args.step, out=args.out,
+                     jobs=args.jobs, starts=args.starts, hold=args.hold, noise=args.noise)
+    rows = [{"robot": str(f), "walk score": f"{g['walk_score']:.4f}",
+             "tuned": f"{g['score']:.4f}", "m/s": f"{g['speed']:.3f}",
+             "Hz": "" if g["frequency"] is None else f"{g['frequency']:.2f}",
+             "wheeled": g["wheeled"], "gait": str(path)} for f, (path, g) in zip(files, res)]
+    print(format_table(rows, ["robot", "walk score", "tuned", "m/s", "Hz", "wheeled", "gait"]))
+    judged = "from the rest state" if args.starts == 1 else \
+        f"the median from {args.starts} starts, {args.starts - 1} with noise {args.noise}"
+    print("body lengths per second; walk score: the best of 8 random gaits; tuned: then "
+          f"{args.refine // 16} CMA-ES generations of 16, each gait {judged}, each control held "
+          f"{args.hold} physics step(s); replay a gait in robovae/Walk-v0 with robovae.envs.gait")
     return 0
 
 
@@ -277,6 +300,28 @@ def build_parser() -> argparse.ArgumentParser:
                         "in the whitened prior's units (0: near copies allowed); default 1")
     o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
     o.set_defaults(func=cmd_optimize)
+    t = sub.add_parser("gait", help="tune an open-loop gait to each robot's body (the walk "
+                       "score's 8 random gaits, then CMA-ES) and write it for robovae/Walk-v0")
+    t.add_argument("paths", nargs="+", help="robot files or folders (robot_*/robot.xml)")
+    t.add_argument("--refine", type=int, default=496,
+                   help="CMA-ES gaits after the 8 random gaits, in generations of 16")
+    t.add_argument("--starts", type=int, default=4,
+                   help="judge each gait by its median speed from this many starts: the rest "
+                        "state and the others with robovae/Walk-v0's reset noise (1: the rest "
+                        "state only)")
+    t.add_argument("--hold", type=int, default=5,
+                   help="physics steps each control is held, as robovae/Walk-v0's frame_skip "
+                        "(1: a control at every step)")
+    t.add_argument("--noise", type=float, default=0.05,
+                   help="scale of the starts' noise (robovae/Walk-v0's reset_noise_scale)")
+    t.add_argument("--seed", type=int, default=0, help="the walk score's seed")
+    t.add_argument("--step", action="store_true",
+                   help="refuse wheeled robots (a motor on a hinge without limits), as task "
+                        "step does")
+    t.add_argument("--out", help="folder for the gait files (default: gait_tuned.json beside "
+                   "each robot)")
+    t.add_argument("--jobs", type=int, default=0, help="processes (0: all cores)")
+    t.set_defaults(func=cmd_gait)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "
                        "reconstruction with --ckpt (MUJOCO_GL=egl renders off-screen)")
     r.add_argument("paths", nargs="+", help="robot files or folders (robot_*/robot.xml)")

@@ -52,7 +52,12 @@ import mujoco
 import numpy as np
 
 from robovae.data.loading import quiet_forward
-from robovae.evaluate.quality.locomotion import GaitResult, continuous_actuators, gait
+from robovae.evaluate.quality.locomotion import (
+    GaitResult,
+    GaitTrials,
+    continuous_actuators,
+    gait,
+)
 
 __all__ = ["GAIT_TASKS", "SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score",
            "step_score", "walk_gait", "walk_score", "Wheeled"]
@@ -78,15 +83,23 @@ class Wheeled(ValueError):
 
 
 def _walk(path: str | os.PathLike, seed: int, trials: int, seconds: float, settle: float,
-          max_tilt: float, step: bool = False) -> tuple[GaitResult, mujoco.MjModel]:
+          max_tilt: float, step: bool = False, refine: int = 0, starts: int = 1,
+          hold: int = 1, noise: float = 0.0) -> tuple[GaitResult, mujoco.MjModel]:
     from robovae.envs.walk import walk_scene
 
     _, scene = walk_scene(path)
     if step and continuous_actuators(scene.model).any():
         raise Wheeled("wheeled: a motor drives a hinge without limits (task step scores "
                       "robots that step, not roll)")
-    return gait(scene.model, rollouts=trials, seconds=seconds, seed=seed,
-                settle=settle / seconds, max_tilt=max_tilt), scene.model
+    if not refine:
+        return gait(scene.model, rollouts=trials, seconds=seconds, seed=seed,
+                    settle=settle / seconds, max_tilt=max_tilt), scene.model
+    from robovae.evaluate.quality.gait_search import trials_search
+
+    runs = GaitTrials(scene.model, seconds, settle / seconds, max_tilt=max_tilt, hold=hold)
+    if starts > 1:
+        runs.perturb(scene.qpos_idx, scene.qvel_idx, starts, noise, seed)
+    return trials_search(runs, rollouts=trials, refine=refine, seed=seed), scene.model
 
 
 def _record(g: GaitResult) -> dict:
@@ -113,7 +126,8 @@ def step_score(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds:
 
 
 def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: float = 3.0,
-              settle: float = 1.0, max_tilt: float = 60.0, step: bool = False) -> dict:
+              settle: float = 1.0, max_tilt: float = 60.0, step: bool = False,
+              refine: int = 0, starts: int = 1, hold: int = 1, noise: float = 0.05) -> dict:
     """The gait that gives :func:`walk_score` (same arguments) its score, as JSON-ready
     numbers: ``score``, ``speed``, ``extent``, ``power``, ``mass``, ``seconds``, ``settle``,
     ``max_tilt``, the ``score_seed``, ``wheeled`` (a motor drives a hinge without limits: the
@@ -122,14 +136,32 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
     ``robovae/Walk-v0``'s normalised actions it is ``a(t) = clip(B + A sin(2 pi f t + phi), -1,
     1)`` (:class:`robovae.envs.gait.SinusoidGait`); a robot that scores 0 has no gait (``frequency``
     None, empty lists). ``step``: :func:`step_score`'s gait (a wheeled robot raises
-    :class:`Wheeled`)."""
-    g, model = _walk(path, seed, trials, seconds, settle, max_tilt, step)
+    :class:`Wheeled`). ``refine > 0``: the gait tuned to the body, the ``trials`` random gaits
+    followed by ``refine // 16`` CMA-ES generations of 16 from the best of them
+    (:func:`robovae.evaluate.quality.gait_search.trials_search`, the same scene and rules);
+    with ``starts = hold = 1`` its ``score`` is never below :func:`walk_score`'s. Tuned for a
+    policy's use: each control held for ``hold`` physics steps (``robovae/Walk-v0``'s
+    ``frame_skip``) and every gait judged by its median speed from ``starts`` states, the
+    rest state and ``starts - 1`` with the environment's reset noise of scale ``noise``
+    (:meth:`~robovae.evaluate.quality.locomotion.GaitTrials.perturb`); ``score`` is then that
+    median. ``rollouts`` counts the gaits tried, each simulated ``starts`` times.
+
+    Raises:
+        ValueError: ``refine``, ``starts`` or ``hold`` out of range (``refine >= 0``, the
+            others ``>= 1``; ``starts`` and ``hold`` other than 1 only with ``refine``)."""
+    if refine < 0 or starts < 1 or hold < 1 or (not refine and (starts, hold) != (1, 1)):
+        raise ValueError(f"walk_gait: refine must be 0 or more, starts and hold 1 or more (and "
+                         f"1 without refine), not {refine}, {starts}, {hold}")
+    g, model = _walk(path, seed, trials, seconds, settle, max_tilt, step, refine, starts, hold,
+                     noise)
     moves = g.speed > 0
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(model.nu)]
     return {"score": g.speed, "speed": g.speed_m_s, "extent": g.extent, "score_seed": seed,
             "power": g.power, "mass": g.mass,
             "wheeled": bool(continuous_actuators(model).any()),
-            "trials": trials, "seconds": seconds, "settle": settle, "max_tilt": max_tilt,
+            "trials": trials, "refine": refine, "rollouts": g.rollouts, "starts": starts,
+            "hold": hold, "noise": noise if starts > 1 else 0.0, "seconds": seconds,
+            "settle": settle, "max_tilt": max_tilt,
             "frequency": g.frequency if moves else None,
             "actuators": names if moves else [],
             "amplitude": [float(v) for v in g.amplitude] if moves else [],

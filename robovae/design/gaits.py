@@ -1,0 +1,136 @@
+"""Gaits tuned to a robot's body, as ``robovae/Walk-v0`` policies: ``robovae gait``.
+
+``robovae optimize --task walk`` scores a robot by the best of 8 random open-loop sinusoidal
+gaits and writes that gait beside each of its best robots (``gait.json``): a measure of the
+body under a fixed, small budget, and a gait tuned to one exact start with a control at every
+physics step, which an environment that holds each action for 5 steps and starts from a noisy
+pose does not give it. :func:`tune_gaits` finds, for any robot files (samples, optimised
+robots, real robots), a gait for the environment: the walk score's search continued by CMA-ES
+(:func:`robovae.design.score.walk_gait` with ``refine``: the same 8 random gaits first, then
+``refine // 16`` generations of 16, in the same scene and rules: 3 s, the first second not
+counted, falls at 60°) with every gait judged as ``robovae/Walk-v0`` would run it by default:
+each control held for ``hold`` (5) physics steps, and its median speed from ``starts`` (4)
+states, the rest state and three with the environment's reset noise (``noise``, 0.05).
+``starts = hold = 1`` tunes for the exact start instead (a replay with ``frame_skip=1`` and no
+reset noise reproduces its score, and the score is never below the walk score). The gait is
+written in the format of ``gait.json`` (:meth:`robovae.envs.gait.SinusoidGait.from_json` reads
+it; the file adds ``walk_score``, the robot's walk score, and ``robot``, the file it was tuned
+for).
+
+Where the files go: ``<robot's folder>/gait_tuned.json`` by default; with ``out``, one file per
+robot in that folder, named after the robot (its folder's name for a ``robot.xml`` or
+``scene.xml``, else the file's stem). Every robot is loaded before anything is simulated or
+written: a file that does not load, a robot that ``robovae/Walk-v0`` refuses (no actuators, an
+actuated base), or two robots that would write the same file is refused with one line.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from robovae.data.workers import process_pool
+from robovae.errors import RobovaeError, check_count
+from robovae.files import atomic_json
+
+__all__ = ["GAIT_FILE", "tune_gaits"]
+
+#: The name of a tuned gait's file beside its robot.
+GAIT_FILE = "gait_tuned.json"
+
+
+def _destination(path: Path, out: Path | None) -> Path:
+    if out is None:
+        return path.parent / GAIT_FILE
+    name = path.parent.name if path.name in ("robot.xml", "scene.xml") else path.stem
+    return out / f"{name}.json"
+
+
+def _check(path: Path, step: bool) -> None:
+    """Refuse (one line) a robot file that ``robovae/Walk-v0`` refuses (it does not load, has
+    no actuators or an actuated base: :func:`robovae.envs.walk.walk_scene`) or, with ``step``,
+    one with a motor on a hinge without limits."""
+    from robovae.envs.walk import walk_scene
+    from robovae.evaluate.quality.locomotion import continuous_actuators
+
+    _, scene = walk_scene(path)
+    if step and continuous_actuators(scene.model).any():
+        raise RobovaeError(f"robovae: {path}: wheeled (a motor drives a hinge without limits): "
+                           "--step tunes robots that step, not roll")
+
+
+def _tune(item: tuple[str, int, int, bool, dict]) -> dict:
+    """The tuned gait of one robot file, with its walk score (worker)."""
+    from robovae.design.score import walk_gait
+
+    path, refine, seed, step, kw = item
+    plain = walk_gait(path, seed=seed, step=step)["score"]
+    return {**walk_gait(path, seed=seed, step=step, refine=refine, **kw), "walk_score": plain,
+            "robot": str(Path(path).resolve())}
+
+
+def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int = 0,
+               step: bool = False, out: str | os.PathLike | None = None, jobs: int = 1,
+               progress: bool = True, starts: int = 4, hold: int = 5, noise: float = 0.05
+               ) -> list[tuple[Path, dict]]:
+    """Tune the gait of each robot file and write it (module docstring); returns each gait
+    file and its contents, in input order.
+
+    ``refine``: CMA-ES gaits after the 8 random ones (in generations of 16); ``starts``,
+    ``hold``, ``noise``: how every gait is judged (module docstring; each gait is simulated
+    ``starts`` times); ``seed``: the walk score's seed (its 8 gaits, CMA-ES's and the noisy
+    starts'); ``step``: a robot with a motor on a hinge without limits is refused instead (it
+    could roll: task step); ``jobs``: worker processes (0: all cores); ``progress``: a tqdm
+    progress bar.
+
+    Raises:
+        RobovaeError: one line, before anything is written: ``refine`` below 16, ``starts``
+            or ``hold`` below 1, ``noise`` negative, no robot, a
+            missing or broken file, a robot without actuators or with an actuated base (or,
+            with ``step``, wheeled),
+            two robots with one destination, or ``out`` not a folder.
+    """
+    check_count("--refine", refine, 16)
+    check_count("--starts", starts, 1)
+    check_count("--hold", hold, 1)
+    if not noise >= 0:
+        raise RobovaeError(f"robovae: --noise must be 0 or more, not {noise!r}")
+    files = [Path(p) for p in paths]
+    if not files:
+        raise RobovaeError("robovae: no robot files given")
+    folder = None if out is None else Path(out)
+    if folder is not None and folder.exists() and not folder.is_dir():
+        raise RobovaeError(f"robovae: {folder}: not a folder")
+    targets = [_destination(f, folder) for f in files]
+    seen: dict[Path, Path] = {}
+    for f, t in zip(files, targets):
+        if not f.is_file():
+            raise RobovaeError(f"robovae: {f}: no such robot file")
+        if t in seen:
+            raise RobovaeError(f"robovae: {seen[t]} and {f} would both write {t}")
+        seen[t] = f
+    for f in files:
+        _check(f, step)
+    kw = {"starts": starts, "hold": hold, "noise": noise}
+    items = [(str(f), refine, seed, step, kw) for f in files]
+    jobs = jobs or (os.cpu_count() or 1)
+    bar = tqdm(total=len(items), desc="gaits", unit="robot", disable=not progress)
+    gaits: list[dict] = []
+    try:
+        if jobs == 1 or len(items) == 1:
+            for i in items:
+                gaits.append(_tune(i))
+                bar.update()
+        else:
+            with process_pool(min(jobs, len(items))) as pool:
+                for g in pool.map(_tune, items, chunksize=1):
+                    gaits.append(g)
+                    bar.update()
+    finally:
+        bar.close()
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+    return [(atomic_json(t, g), g) for t, g in zip(targets, gaits)]
