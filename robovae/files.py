@@ -4,19 +4,21 @@
 place with ``os.replace``: a reader (or a run continued after a crash) sees the old file or the
 new one, never half of one. Robot files, scene files, procedural robots, reports and
 optimisation logs are written with it; :func:`atomic_json` writes a JSON document so.
-:func:`robot_files` lists the robot files that commands given files and folders work on.
+:func:`robot_files` lists the robot files that commands given files and folders work on;
+:func:`writable` checks, before a long run, that its files can be made where they go.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 from robovae.errors import RobovaeError
 
-__all__ = ["atomic_json", "atomic_write", "robot_files"]
+__all__ = ["atomic_json", "atomic_write", "robot_files", "writable"]
 
 _ATTEMPTS = 100  # temporary names tried before giving up
 
@@ -82,3 +84,21 @@ def robot_files(paths: Sequence[str | os.PathLike]) -> list[Path]:
         else:
             raise RobovaeError(f"robovae: {p}: no such file or folder")
     return found
+
+
+def writable(out: str | os.PathLike, what: str = "files") -> Path:
+    """Create the folder ``out`` (and its parents) and check that files can be made in it;
+    returns it.
+
+    Raises:
+        RobovaeError: one line naming ``out`` (``cannot write <what> there``) when it cannot be
+            created or written to.
+    """
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()
+    except OSError as e:
+        raise RobovaeError(f"robovae: {out}: cannot write {what} there "
+                           f"({e.strerror or type(e).__name__})") from None
+    return out

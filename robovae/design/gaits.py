@@ -19,22 +19,25 @@ for).
 
 Where the files go: ``<robot's folder>/gait_tuned.json`` by default; with ``out``, one file per
 robot in that folder, named after the robot (its folder's name for a ``robot.xml`` or
-``scene.xml``, else the file's stem). Every robot is loaded before anything is simulated or
-written: a file that does not load, a robot that ``robovae/Walk-v0`` refuses (no actuators, an
-actuated base), or two robots that would write the same file is refused with one line.
+``scene.xml``, else the file's stem); each written as soon as its robot is done. Every robot
+is loaded, and every destination folder made and tried, before any gait is tuned: a file that
+does not load, a robot that ``robovae/Walk-v0`` refuses (no actuators, an actuated base), two
+robots that would write the same file, or a folder that cannot be written is refused with one
+line.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
 
 from tqdm.auto import tqdm
 
 from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError, check_count
-from robovae.files import atomic_json
+from robovae.files import atomic_json, writable
 
 __all__ = ["GAIT_FILE", "tune_gaits"]
 
@@ -87,11 +90,10 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
     progress bar.
 
     Raises:
-        RobovaeError: one line, before anything is written: ``refine`` below 16, ``starts``
-            or ``hold`` below 1, ``noise`` negative, no robot, a
-            missing or broken file, a robot without actuators or with an actuated base (or,
-            with ``step``, wheeled),
-            two robots with one destination, or ``out`` not a folder.
+        RobovaeError: one line, before any gait is tuned: ``refine`` below 16, ``starts`` or
+            ``hold`` below 1, ``noise`` negative, no robot, a missing or broken file, a robot
+            without actuators or with an actuated base (with ``step``: wheeled), two robots
+            with one destination, or a destination folder that cannot be written.
     """
     check_count("--refine", refine, 16)
     check_count("--starts", starts, 1)
@@ -102,8 +104,6 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
     if not files:
         raise RobovaeError("robovae: no robot files given")
     folder = None if out is None else Path(out)
-    if folder is not None and folder.exists() and not folder.is_dir():
-        raise RobovaeError(f"robovae: {folder}: not a folder")
     targets = [_destination(f, folder) for f in files]
     seen: dict[Path, Path] = {}
     for f, t in zip(files, targets):
@@ -114,23 +114,20 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
         seen[t] = f
     for f in files:
         _check(f, step)
+    for parent in dict.fromkeys(t.parent for t in targets):
+        writable(parent, "gaits")
     kw = {"starts": starts, "hold": hold, "noise": noise}
     items = [(str(f), refine, seed, step, kw) for f in files]
     jobs = jobs or (os.cpu_count() or 1)
     bar = tqdm(total=len(items), desc="gaits", unit="robot", disable=not progress)
-    gaits: list[dict] = []
-    try:
-        if jobs == 1 or len(items) == 1:
-            for i in items:
-                gaits.append(_tune(i))
+    done: list[tuple[Path, dict]] = []
+    try:  # each gait is written as soon as it is tuned (a file whole or not at all)
+        with nullcontext() if jobs == 1 or len(items) == 1 else \
+                process_pool(min(jobs, len(items))) as pool:
+            tuned = pool.map(_tune, items, chunksize=1) if pool else map(_tune, items)
+            for target, g in zip(targets, tuned):
+                done.append((atomic_json(target, g), g))
                 bar.update()
-        else:
-            with process_pool(min(jobs, len(items))) as pool:
-                for g in pool.map(_tune, items, chunksize=1):
-                    gaits.append(g)
-                    bar.update()
     finally:
         bar.close()
-    if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
-    return [(atomic_json(t, g), g) for t, g in zip(targets, gaits)]
+    return done

@@ -26,7 +26,6 @@ import math
 import os
 import re
 import shutil
-import tempfile
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
@@ -44,7 +43,7 @@ from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
-from robovae.files import atomic_json
+from robovae.files import atomic_json, writable
 from robovae.generate.build import build_robot, warm_up
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.writer import WRITER
@@ -74,7 +73,7 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
     two models' robots), unless ``overwrite``: then robovae's own files (``robot_<i>/``,
     manifests, summary) are deleted first — nothing else in the folder is touched.
     """
-    writable(out)
+    writable(out, "robots")
     path = out / RUN
     old = json.loads(path.read_text()) if path.is_file() else None
     has_robots = bool(read_manifest(out))
@@ -93,20 +92,6 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
         elif re.fullmatch(r"manifest.*\.jsonl|summary\.json|run\.json", item.name):
             item.unlink()
     atomic_json(path, run, durable=False)
-
-
-def writable(out: Path) -> None:
-    """Create the folder ``out`` (and its parents) and check that files can be made in it.
-
-    Raises:
-        RobovaeError: one line naming ``out`` when it cannot be created or written to.
-    """
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        tempfile.TemporaryFile(dir=out).close()
-    except OSError as e:
-        raise RobovaeError(f"robovae: {out}: cannot write robots there "
-                           f"({e.strerror or type(e).__name__})") from None
 
 
 def read_manifest(out: Path) -> dict[int, dict]:

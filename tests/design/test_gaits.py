@@ -114,8 +114,10 @@ def test_bad_input_is_refused_in_one_line_before_anything_is_written(robots, tmp
         assert message in err and len(err.strip().splitlines()) == 1, err
         assert not out.exists()
     (tmp_path / "file").write_text("")
-    with pytest.raises(RobovaeError, match="file: not a folder"):
+    with pytest.raises(RobovaeError, match="file: cannot write gaits there"):
         tune_gaits([q], out=tmp_path / "file")
+    assert main(["gait", q, "--out", str(tmp_path / "file" / "gaits"), "--jobs", "1"]) == 2
+    assert "file/gaits: cannot write gaits there" in capsys.readouterr().err
     with pytest.raises(RobovaeError, match="no robot files given"):
         tune_gaits([])
     for bad in ({"refine": -1}, {"starts": 2}, {"hold": 0, "refine": 16}):
