@@ -109,9 +109,9 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
     for f, t in zip(files, targets):
         if not f.is_file():
             raise RobovaeError(f"robovae: {f}: no such robot file")
-        if t in seen:
-            raise RobovaeError(f"robovae: {seen[t]} and {f} would both write {t}")
-        seen[t] = f
+        if t.resolve() in seen:
+            raise RobovaeError(f"robovae: {seen[t.resolve()]} and {f} would both write {t}")
+        seen[t.resolve()] = f
     for f in files:
         _check(f, step)
     for parent in dict.fromkeys(t.parent for t in targets):

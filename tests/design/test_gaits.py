@@ -118,6 +118,9 @@ def test_bad_input_is_refused_in_one_line_before_anything_is_written(robots, tmp
         tune_gaits([q], out=tmp_path / "file")
     assert main(["gait", q, "--out", str(tmp_path / "file" / "gaits"), "--jobs", "1"]) == 2
     assert "file/gaits: cannot write gaits there" in capsys.readouterr().err
+    again = robots["quadruped"].parent / ".." / "quadruped" / "robot.xml"  # the same file
+    with pytest.raises(RobovaeError, match=f"would both write {again.parent / GAIT_FILE}"):
+        tune_gaits([q, again])
     with pytest.raises(RobovaeError, match="no robot files given"):
         tune_gaits([])
     for bad in ({"refine": -1}, {"starts": 2}, {"hold": 0, "refine": 16}):
