@@ -30,7 +30,7 @@ from gymnasium import spaces
 
 from robovae.envs.walk import ROOT_DIM, Layout, WalkEnv
 from robovae.errors import RobovaeError
-from robovae.files import robot_files as find_robot_files
+from robovae.files import robot_files as files_in_folders
 
 __all__ = ["PadObsAction", "action_mask", "make_vector_env", "obs_mask", "pad_obs",
            "padded_layout", "robot_files"]
@@ -48,7 +48,7 @@ def robot_files(source: str | os.PathLike | Sequence[str | os.PathLike]) -> list
         folder = Path(source)
         if not folder.is_dir():
             raise RobovaeError(f"robovae: {folder}: not a folder of robots")
-        files = find_robot_files([folder])
+        files = files_in_folders([folder])
         if not files:
             raise RobovaeError(f"robovae: {folder}: no robot files (robot.xml, robot_*/robot.xml, "
                                "*/robot.xml or *.xml)")
