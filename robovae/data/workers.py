@@ -8,14 +8,38 @@ hang for ever in ``futex_wait`` (seen on a 100,000-robot build followed by a sec
 functions live in :mod:`robovae` modules, and a script that starts workers must guard its
 entry point with ``if __name__ == "__main__":`` (as every multiprocessing program on macOS and
 Windows must).
+
+A worker ends with its parent: killed (``SIGTERM``, ``SIGKILL``, a closed terminal), the
+parent runs no clean-up, and its workers would otherwise go on with the robots already sent
+to them, orphaned, for as long as those take (minutes for ``robovae gait``).
 """
 
 from __future__ import annotations
 
+import os
 from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
+from multiprocessing import get_context, parent_process
+from threading import Thread
 
 
 def process_pool(workers: int) -> ProcessPoolExecutor:
-    """A pool of ``workers`` spawned processes."""
-    return ProcessPoolExecutor(workers, mp_context=get_context("spawn"))
+    """A pool of ``workers`` spawned processes, each ending as soon as this process ends
+    (:func:`exit_with_parent`)."""
+    return ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
+                               initializer=exit_with_parent)
+
+
+def exit_with_parent() -> None:
+    """In a worker process: a daemon thread that waits for the parent process's end (its
+    sentinel, :meth:`multiprocessing.process.BaseProcess.join`) and then ends this process at
+    once (``os._exit(1)``: the work in hand is lost with the parent that asked for it).
+    Nothing in a process without a ``multiprocessing`` parent."""
+    parent = parent_process()
+    if parent is not None:
+        Thread(target=_end_after, args=(parent,), name="robovae-exit-with-parent",
+               daemon=True).start()
+
+
+def _end_after(parent) -> None:
+    parent.join()
+    os._exit(1)
