@@ -13,7 +13,9 @@ or ball, N for a slide) its actuators (joint transmission) can apply, summed ove
   nothing counts 0 (unknown).
 
 ``kinematic`` graphs carry it as ``joint.torque``, and the writer gives each actuated joint a
-motor of that gear with control range ``(-1, 1)``.
+motor of that gear with control range ``(-1, 1)``. The standing test's hold may not exceed
+what the actuators can give (:func:`torque_limits`): the same bounds, but a servo counts only
+its ``forcerange`` and an unbounded actuator makes its joint's limit ``inf``.
 
 **Continuous joints** (hinges without limits: wheels, rotors) get a DC motor's torque–speed
 line (:func:`speed_limited`): ``τ = g (u − q̇ / ω₀)``, the control ``u ∈ [-1, 1]``, stall torque
@@ -26,10 +28,12 @@ keep plain motors: the range bounds their travel.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
-__all__ = ["NO_LOAD_SPEED", "joint_strength", "speed_limited"]
+__all__ = ["NO_LOAD_SPEED", "actuator_force", "joint_strength", "speed_limited", "torque_limits"]
 
 #: No-load speed (rad/s) of the motor of a continuous joint: generous beside real wheels
 #: (TIAGo's and Husky's turn at 6–10 rad/s at top speed).
@@ -46,31 +50,55 @@ def _half(lo_hi: np.ndarray) -> float:
     return 0.5 * float(abs(lo_hi[1] - lo_hi[0]))
 
 
-def joint_strength(model: mujoco.MjModel) -> np.ndarray:
-    """Strength of every joint ``[njnt]`` (module docstring; 0 without an actuator)."""
-    out = np.zeros(model.njnt)
-    for a in range(model.nu):
-        if model.actuator_trntype[a] != _TRN_JOINT:
-            continue
+def actuator_force(model: mujoco.MjModel, a: int, servos: bool = True) -> float:
+    """The largest force actuator ``a`` can put on its joint (module docstring), ``inf`` when
+    nothing bounds it: a servo counts ``|gear| · kp · h`` when ``servos``, else (and when it
+    has no span ``h``) only its ``forcerange``; an actuator of another kind only its
+    ``forcerange``. ``a`` need not have a joint transmission."""
+    gear = abs(float(model.actuator_gear[a, 0]))
+    gain = abs(float(model.actuator_gainprm[a, 0]))
+    force = math.inf
+    if model.actuator_gaintype[a] == _GAIN_FIXED and model.actuator_biastype[a] == _BIAS_NONE:
+        if model.actuator_dyntype[a] == _DYN_INTEGRATOR:
+            if model.actuator_actlimited[a]:
+                force = gear * gain * float(np.abs(model.actuator_actrange[a]).max())
+        elif model.actuator_ctrllimited[a]:
+            force = gear * gain * float(np.abs(model.actuator_ctrlrange[a]).max())
+    elif (servos and model.actuator_gaintype[a] == _GAIN_FIXED
+          and model.actuator_biastype[a] == _BIAS_AFFINE):
         j = int(model.actuator_trnid[a, 0])
-        gear = abs(float(model.actuator_gear[a, 0]))
-        gain = abs(float(model.actuator_gainprm[a, 0]))
-        force = 0.0
-        if model.actuator_gaintype[a] == _GAIN_FIXED and model.actuator_biastype[a] == _BIAS_NONE:
-            if model.actuator_dyntype[a] == _DYN_INTEGRATOR:
-                if model.actuator_actlimited[a]:
-                    force = gear * gain * float(np.abs(model.actuator_actrange[a]).max())
-            elif model.actuator_ctrllimited[a]:
-                force = gear * gain * float(np.abs(model.actuator_ctrlrange[a]).max())
-        elif (model.actuator_gaintype[a] == _GAIN_FIXED
-              and model.actuator_biastype[a] == _BIAS_AFFINE):
-            span = _half(model.actuator_ctrlrange[a]) if model.actuator_ctrllimited[a] \
-                else _half(model.jnt_range[j]) if model.jnt_limited[j] else 0.0
-            force = gear * gain * span
-        if model.actuator_forcelimited[a]:
-            cap = gear * float(np.abs(model.actuator_forcerange[a]).max())
-            force = min(force, cap) if force > 0 else cap
-        out[j] += force
+        span = _half(model.actuator_ctrlrange[a]) if model.actuator_ctrllimited[a] \
+            else _half(model.jnt_range[j]) if model.jnt_limited[j] else 0.0
+        force = gear * gain * span if span > 0 else math.inf
+    if model.actuator_forcelimited[a]:  # forcerange clamps the force before the gear
+        force = min(force, gear * float(np.abs(model.actuator_forcerange[a]).max()))
+    return force
+
+
+def _joint_actuators(model: mujoco.MjModel) -> list[tuple[int, int]]:
+    """``(actuator, joint)`` of every actuator with a joint transmission."""
+    return [(a, int(model.actuator_trnid[a, 0])) for a in range(model.nu)
+            if model.actuator_trntype[a] == _TRN_JOINT]
+
+
+def joint_strength(model: mujoco.MjModel) -> np.ndarray:
+    """Strength of every joint ``[njnt]``: the sum of its actuators'
+    :func:`actuator_force`, an unbounded one counting 0 (unknown); 0 without an actuator."""
+    out = np.zeros(model.njnt)
+    for a, j in _joint_actuators(model):
+        force = actuator_force(model, a)
+        out[j] += force if math.isfinite(force) else 0.0
+    return out
+
+
+def torque_limits(model: mujoco.MjModel) -> dict[int, float]:
+    """The largest force the robot's own actuators can put on each joint they drive through a
+    joint transmission, for a hold that must not exceed it: the sum of their
+    :func:`actuator_force` without servo spans (a servo's force is bounded by its
+    ``forcerange`` only), ``inf`` when any of them is unbounded."""
+    out: dict[int, float] = {}
+    for a, j in _joint_actuators(model):
+        out[j] = out.get(j, 0.0) + actuator_force(model, a, servos=False)
     return out
 
 

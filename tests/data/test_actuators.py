@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 import pytest
 
-from robovae.data.actuators import NO_LOAD_SPEED, joint_strength, speed_limited
+from robovae.data.actuators import NO_LOAD_SPEED, joint_strength, speed_limited, torque_limits
 from robovae.data.procedural import procedural_spec
+from robovae.data.zoo import zoo_files
 from robovae.evaluate.quality.locomotion import continuous_actuators
-from robovae.evaluate.quality.standing import torque_limits
 
 
 def wheel(gear: float, dc: bool) -> mujoco.MjModel:
@@ -57,3 +59,35 @@ def test_wheels_get_dc_motors_and_joints_with_a_range_plain_ones() -> None:
     assert np.array_equal(affine, wheels)
     gear = model.actuator_gear[wheels, 0]
     assert model.actuator_biasprm[wheels, 2] == pytest.approx(-1.0 / (gear * NO_LOAD_SPEED))
+
+
+def test_torque_limits_and_strength_by_hand() -> None:
+    """Joint torque an actuator can give: gear · gain · ctrl for a motor, gear · forcerange;
+    a position servo is not limited by its control range (``torque_limits``) but its strength
+    is kp times half its control range (``joint_strength``), both capped by forcerange."""
+    xml = """<mujoco><worldbody><body>
+      <joint name="j0" type="hinge"/><joint name="j1" type="hinge" axis="1 0 0"/>
+      <joint name="j2" type="hinge" axis="0 1 0"/><joint name="j3" type="slide"/>
+      <joint name="j4" type="slide" axis="1 0 0"/>
+      <geom size="0.1"/></body></worldbody>
+    <actuator>
+      <motor joint="j0" gear="2" ctrlrange="-3 3"/>
+      <general joint="j1" gainprm="5" gear="2" ctrlrange="-1 3"/>
+      <position joint="j2" kp="100" ctrlrange="-1 1"/>
+      <position joint="j3" kp="100" gear="3" forcerange="-2 2"/>
+      <motor joint="j4" gear="10" ctrlrange="-1 1" forcerange="-4 4"/>
+    </actuator></mujoco>"""
+    lim = torque_limits(mujoco.MjModel.from_xml_string(xml))
+    assert lim[0] == pytest.approx(6.0)
+    assert lim[1] == pytest.approx(30.0)
+    assert lim[2] == math.inf
+    assert lim[3] == pytest.approx(6.0)
+    assert lim[4] == pytest.approx(min(10.0, 40.0))
+    strength = joint_strength(mujoco.MjModel.from_xml_string(xml))
+    assert strength == pytest.approx([6.0, 30.0, 100.0, 6.0, 10.0])
+    # the gymnasium humanoid's motors (gain 1): gear (25 ... 300) · ctrlrange ±0.4
+    model = mujoco.MjModel.from_xml_path(str(dict(zoo_files()[0])["gym_humanoid"]))
+    assert torque_limits(model) == pytest.approx(
+        {int(model.actuator_trnid[a, 0]): 0.4 * model.actuator_gear[a, 0]
+         for a in range(model.nu)})
+    assert torque_limits(model)[1] == pytest.approx(40.0)  # abdomen_y: gear 100

@@ -127,34 +127,3 @@ def test_behaviour_rows_and_summary(tmp_path) -> None:
     one = behaviour(quadruped(weak=True), entropy=kw)
     assert one["robot"] == "proc_quadruped_00003" and one["stands"] is False
     assert math.isnan(summarize_behaviour([])["standing_rate"])
-
-
-def test_torque_limits_by_hand() -> None:
-    """Joint torque an actuator can give: gear · gain · ctrl for a motor, gear · forcerange;
-    a position servo is not limited by its control range."""
-    from robovae.evaluate.quality.standing import torque_limits as _torque_limits
-
-    xml = """<mujoco><worldbody><body>
-      <joint name="j0" type="hinge"/><joint name="j1" type="hinge" axis="1 0 0"/>
-      <joint name="j2" type="hinge" axis="0 1 0"/><joint name="j3" type="slide"/>
-      <joint name="j4" type="slide" axis="1 0 0"/>
-      <geom size="0.1"/></body></worldbody>
-    <actuator>
-      <motor joint="j0" gear="2" ctrlrange="-3 3"/>
-      <general joint="j1" gainprm="5" gear="2" ctrlrange="-1 3"/>
-      <position joint="j2" kp="100" ctrlrange="-1 1"/>
-      <position joint="j3" kp="100" gear="3" forcerange="-2 2"/>
-      <motor joint="j4" gear="10" ctrlrange="-1 1" forcerange="-4 4"/>
-    </actuator></mujoco>"""
-    lim = _torque_limits(mujoco.MjModel.from_xml_string(xml))
-    assert lim[0] == pytest.approx(6.0)
-    assert lim[1] == pytest.approx(30.0)
-    assert lim[2] == math.inf
-    assert lim[3] == pytest.approx(6.0)
-    assert lim[4] == pytest.approx(min(10.0, 40.0))
-    # the gymnasium humanoid's motors (gain 1): gear (25 ... 300) · ctrlrange ±0.4
-    model = mujoco.MjModel.from_xml_path(str(ZOO["gym_humanoid"]))
-    assert _torque_limits(model) == pytest.approx(
-        {int(model.actuator_trnid[a, 0]): 0.4 * model.actuator_gear[a, 0]
-         for a in range(model.nu)})
-    assert _torque_limits(model)[1] == pytest.approx(40.0)  # abdomen_y: gear 100

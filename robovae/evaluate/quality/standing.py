@@ -15,8 +15,8 @@ caller's:
   ``implicitfast`` (damping implicit);
 - a joint driven by a stateless actuator of the robot (joint transmission, no activation) is
   held by that actuator turned into a position servo (gain ``kp``, bias ``-kp q - kv q̇``,
-  gear 1) whose force is limited, with ``torque_limits``, by what the robot's own actuators
-  can give on that joint (:func:`torque_limits`); other joints are held by a passive spring
+  gear 1) whose force is limited by what the robot's own actuators can give on that joint
+  (:func:`robovae.data.actuators.torque_limits`); other joints are held by a passive spring
   and damper (``jnt_stiffness``, ``qpos_spring`` the rest pose, ``dof_damping``), unlimited; the
   robot's other actuators are switched off (zero gain and bias).
 
@@ -48,6 +48,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from robovae.data.actuators import torque_limits
 from robovae.data.loading import capture_mujoco_warnings, quiet_forward
 from robovae.evaluate.quality.stage import (
     MOVING,
@@ -63,14 +64,12 @@ _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
 _GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
 _BIAS_NONE = int(mujoco.mjtBias.mjBIAS_NONE)
 _BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_AFFINE)
-_DYN_INTEGRATOR = int(mujoco.mjtDyn.mjDYN_INTEGRATOR)
 _SLEEP = int(mujoco.mjtEnableBit.mjENBL_SLEEP)
 #: Equalities MuJoCo cannot sleep (a fatal error): a model with one is simulated awake.
 _NO_SLEEP = [int(mujoco.mjtEq.mjEQ_TENDON), int(mujoco.mjtEq.mjEQ_FLEX),
              int(mujoco.mjtEq.mjEQ_FLEXVERT), int(mujoco.mjtEq.mjEQ_FLEXSTRAIN)]
 
-__all__ = ["FIRST_SECONDS", "HeldRun", "StandResult", "first_steps", "hold_at_rest", "standing",
-           "torque_limits"]
+__all__ = ["FIRST_SECONDS", "HeldRun", "StandResult", "first_steps", "hold_at_rest", "standing"]
 
 
 @dataclass
@@ -90,32 +89,6 @@ class StandResult:
     limited_joints: int | None = None  # joints held with a torque limit
     seconds: float | None = None  # simulated
     settled: bool | None = None  # stopped early: at rest (module docstring)
-
-
-def torque_limits(model: mujoco.MjModel) -> dict[int, float]:
-    """Largest torque (N·m, or N for a slide) the robot's own actuators can put on each joint
-    they drive through a joint transmission: ``|gear · gain| · max|ctrlrange|`` for a
-    motor-like actuator (fixed gain, no bias; ``actrange`` for an integrator), ``|gear| ·
-    max|forcerange|`` when force-limited (the smaller of the two), ``inf`` otherwise (a servo's
-    force is not bounded by its control range); summed over the actuators of a joint."""
-    out: dict[int, float] = {}
-    for a in range(model.nu):
-        if model.actuator_trntype[a] != _TRN_JOINT:
-            continue
-        j = int(model.actuator_trnid[a, 0])
-        gear = abs(float(model.actuator_gear[a, 0]))
-        limit = math.inf
-        if model.actuator_gaintype[a] == _GAIN_FIXED and model.actuator_biastype[a] == _BIAS_NONE:
-            gain = gear * abs(float(model.actuator_gainprm[a, 0]))
-            if model.actuator_dyntype[a] == _DYN_INTEGRATOR:
-                if model.actuator_actlimited[a]:
-                    limit = gain * float(np.abs(model.actuator_actrange[a]).max())
-            elif model.actuator_ctrllimited[a]:
-                limit = gain * float(np.abs(model.actuator_ctrlrange[a]).max())
-        if model.actuator_forcelimited[a]:  # forcerange clamps the force before the gear
-            limit = min(limit, gear * float(np.abs(model.actuator_forcerange[a]).max()))
-        out[j] = out.get(j, 0.0) + limit
-    return out
 
 
 def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
