@@ -19,7 +19,9 @@ for).
 
 Where the files go: ``<robot's folder>/gait_tuned.json`` by default; with ``out``, one file per
 robot in that folder, named after the robot (its folder's name for a ``robot.xml`` or
-``scene.xml``, else the file's stem); each written as soon as its robot is done. Every robot
+``scene.xml``, else the file's stem), prefixed by as many enclosing folders as set it apart
+from the other robots' (``cma_rank_0.json`` and ``prior_rank_0.json`` for an optimisation
+run's ``best/*/rank_0``); each written as soon as its robot is done. Every robot
 is loaded, and every destination folder made and tried, before any gait is tuned: a file that
 does not load, a robot that ``robovae/Walk-v0`` refuses (no actuators, an actuated base), two
 robots that would write the same file, or a folder that cannot be written is refused with one
@@ -45,11 +47,36 @@ __all__ = ["GAIT_FILE", "tune_gaits"]
 GAIT_FILE = "gait_tuned.json"
 
 
-def _destination(path: Path, out: Path | None) -> Path:
+def _names(path: Path) -> list[str]:
+    """The names a robot file's gait can take in ``out``, shortest first: the robot's name (its
+    folder's for a ``robot.xml`` or ``scene.xml``, else the file's stem), then that name
+    prefixed by one more enclosing folder at a time (``prior_rank_0``, ``best_prior_rank_0``)."""
+    path = Path(os.path.abspath(path))  # a/../a/robot.xml is a/robot.xml; links kept
+    folders = [p.name for p in path.parents if p.name]
+    if path.name not in ("robot.xml", "scene.xml") or not folders:
+        folders.insert(0, path.stem)
+    return ["_".join(reversed(folders[:k])) for k in range(1, len(folders) + 1)]
+
+
+def _destinations(files: Sequence[Path], out: Path | None) -> list[Path]:
+    """Each robot's gait file: ``gait_tuned.json`` beside it, or with ``out`` the shortest of
+    its :func:`_names` that no other robot file's takes (robots of one name in different
+    folders: ``best/cma/rank_0`` and ``best/prior/rank_0`` give ``cma_rank_0.json`` and
+    ``prior_rank_0.json``). One file given twice keeps one name (refused by the caller)."""
     if out is None:
-        return path.parent / GAIT_FILE
-    name = path.parent.name if path.name in ("robot.xml", "scene.xml") else path.stem
-    return out / f"{name}.json"
+        return [f.parent / GAIT_FILE for f in files]
+    names = [_names(f) for f in files]
+    depth = [0] * len(files)
+    while True:
+        takers: dict[str, set[Path]] = {}
+        for f, n, d in zip(files, names, depth):
+            takers.setdefault(n[d], set()).add(f.resolve())
+        longer = [i for i, (n, d) in enumerate(zip(names, depth))
+                  if len(takers[n[d]]) > 1 and d + 1 < len(n)]
+        if not longer:
+            return [out / f"{n[d]}.json" for n, d in zip(names, depth)]
+        for i in longer:
+            depth[i] += 1
 
 
 def _check(path: Path, step: bool) -> None:
@@ -104,7 +131,7 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
     if not files:
         raise RobovaeError("robovae: no robot files given")
     folder = None if out is None else Path(out)
-    targets = [_destination(f, folder) for f in files]
+    targets = _destinations(files, folder)
     seen: dict[Path, Path] = {}
     for f, t in zip(files, targets):
         if not f.is_file():

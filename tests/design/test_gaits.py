@@ -91,6 +91,21 @@ def test_cli_tunes_a_folder_of_robots_into_out(robots, tmp_path, capsys):
     assert not (robots["mobile"].parent / GAIT_FILE).exists()  # only --out was written
 
 
+def test_robots_of_one_name_get_their_folders_in_the_file_name(robots, tmp_path):
+    """An optimisation run's best/cma/rank_0 and best/prior/rank_0 into one --out folder."""
+    files = []
+    for method in ("cma", "prior"):
+        (tmp_path / "best" / method / "rank_0").mkdir(parents=True)
+        files.append(tmp_path / "best" / method / "rank_0" / "robot.xml")
+        files[-1].write_text(robots["quadruped"].read_text())
+    done = tune_gaits([*files, robots["mobile"]], refine=16, starts=1, hold=1,
+                      out=tmp_path / "gaits", progress=False)
+    assert [p.name for p, _ in done] == ["cma_rank_0.json", "prior_rank_0.json", "mobile.json"]
+    assert [g["robot"] for _, g in done] == [str(f.resolve()) for f in
+                                            (*files, robots["mobile"])]
+    assert done[0][1]["score"] == done[1][1]["score"]  # the same body, the same seed
+
+
 def test_bad_input_is_refused_in_one_line_before_anything_is_written(robots, tmp_path, capsys):
     passive = procedural_spec(0)
     for a in list(passive.actuators):
