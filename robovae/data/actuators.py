@@ -51,10 +51,10 @@ def _half(lo_hi: np.ndarray) -> float:
 
 
 def actuator_force(model: mujoco.MjModel, a: int, servos: bool = True) -> float:
-    """The largest force actuator ``a`` can put on its joint (module docstring), ``inf`` when
-    nothing bounds it: a servo counts ``|gear| · kp · h`` when ``servos``, else (and when it
-    has no span ``h``) only its ``forcerange``; an actuator of another kind only its
-    ``forcerange``. ``a`` need not have a joint transmission."""
+    """The largest force actuator ``a``, of joint transmission, can put on its joint (module
+    docstring), ``inf`` when nothing bounds it: a servo counts ``|gear| · kp · h`` when
+    ``servos``, else (and when it has no span ``h``) only its ``forcerange``; an actuator of
+    another kind only its ``forcerange``."""
     gear = abs(float(model.actuator_gear[a, 0]))
     gain = abs(float(model.actuator_gainprm[a, 0]))
     force = math.inf
