@@ -9,6 +9,12 @@ functions live in :mod:`robovae` modules, and a script that starts workers must 
 entry point with ``if __name__ == "__main__":`` (as every multiprocessing program on macOS and
 Windows must).
 
+Used as a context manager, a pool waits for its work when the block ends normally, and cancels
+the work not yet started when it ends with an exception (an error, Ctrl-C, a notebook's
+interrupt): ``concurrent.futures`` would otherwise run every queued item first (``robovae
+gait`` on 30 robots: up to 45 minutes after the interrupt). Items already running finish in
+the background.
+
 A worker ends with its parent: killed (``SIGTERM``, ``SIGKILL``, a closed terminal), the
 parent runs no clean-up, and its workers would otherwise go on with the robots already sent
 to them, orphaned, for as long as those take (minutes for ``robovae gait``).
@@ -22,11 +28,19 @@ from multiprocessing import get_context, parent_process
 from threading import Thread
 
 
-def process_pool(workers: int) -> ProcessPoolExecutor:
+class WorkerPool(ProcessPoolExecutor):
+    """A :class:`~concurrent.futures.ProcessPoolExecutor` whose ``with`` block cancels its
+    queued work on an exception instead of waiting for it (module docstring)."""
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        self.shutdown(wait=exc_type is None, cancel_futures=exc_type is not None)
+        return False
+
+
+def process_pool(workers: int) -> WorkerPool:
     """A pool of ``workers`` spawned processes, each ending as soon as this process ends
     (:func:`exit_with_parent`)."""
-    return ProcessPoolExecutor(workers, mp_context=get_context("spawn"),
-                               initializer=exit_with_parent)
+    return WorkerPool(workers, mp_context=get_context("spawn"), initializer=exit_with_parent)
 
 
 def exit_with_parent() -> None:

@@ -79,6 +79,7 @@ import math
 import os
 import shutil
 from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -425,18 +426,17 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     # started warm (their imports overlap the first decoding), and only with robots to score
     busy = done < 3 * budget or heldout_todo(run)
     pool = worker_pool(jobs, warm=True) if jobs > 1 and busy else None
-    try:
-        while True:
-            k = run.round(pool)
-            if k == 0:
-                break
-            bar.update(k)
-        bar.close()
-        summary = write_best(run)
-        held = heldout(run, pool)
+    try:  # on an error or Ctrl-C the pool cancels its queued robots (WorkerPool)
+        with pool if pool is not None else nullcontext():
+            while True:
+                k = run.round(pool)
+                if k == 0:
+                    break
+                bar.update(k)
+            bar.close()
+            summary = write_best(run)
+            held = heldout(run, pool)
     finally:
-        if pool is not None:
-            pool.shutdown()
         bar.close()
         shutil.rmtree(out / ".work", ignore_errors=True)
     for m in METHODS:

@@ -29,8 +29,8 @@ import shutil
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor
-from contextlib import contextmanager, nullcontext
+from concurrent.futures import Executor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
@@ -39,7 +39,7 @@ import torch
 
 from robovae.data.graph import RobotData
 from robovae.data.tree_arrays import TreeArrays
-from robovae.data.workers import process_pool
+from robovae.data.workers import WorkerPool, process_pool
 from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
@@ -272,9 +272,10 @@ def generate(
         if jobs > 1:
             torch.set_num_threads(1)  # the workers have the other cores
         # the workers start before the first batch is decoded (each imports the writer, MuJoCo
-        # and the measures meanwhile), after the refusals above and only with robots to make
+        # and the measures meanwhile), after the refusals above and only with robots to make;
+        # an error or Ctrl-C cancels the robots queued for them (WorkerPool)
         with open_manifest(out / MANIFEST) as manifest, \
-                (_workers(jobs) if jobs > 1 and todo else nullcontext()) as pool:
+                (worker_pool(jobs, warm=True) if jobs > 1 and todo else nullcontext()) as pool:
             queued = None  # the batch the workers are on: its records and their results
             for chunk in _chunks(todo, batch_size):
                 z, graphs, draws = draw_robots(model, seed, chunk, temperature,
@@ -294,26 +295,13 @@ def generate(
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 
 
-@contextmanager
-def _workers(jobs: int) -> Iterator[ProcessPoolExecutor]:
-    """:func:`worker_pool` started warm; on an error (a refused ``out``, a bad checkpoint,
-    Ctrl-C) its queued robots are cancelled instead of waited for."""
-    pool = worker_pool(jobs, warm=True)
-    try:
-        yield pool
-    except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown()
-
-
 def _finish(manifest: TextIO, records: list[dict], built, bar) -> None:
     """Merge a batch's worker results into its records and append them to the manifest."""
     append_records(manifest, merge_built(records, built))
     bar.update(len(records))
 
 
-def worker_pool(jobs: int, warm: bool = False) -> ProcessPoolExecutor:
+def worker_pool(jobs: int, warm: bool = False) -> WorkerPool:
     """Worker processes for writing and validating robots
     (:func:`robovae.data.workers.process_pool`: spawned, not forked). ``warm``: start all
     ``jobs`` workers now, each importing :mod:`robovae.generate.build`

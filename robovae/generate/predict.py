@@ -134,9 +134,10 @@ class RobotWriter(BasePredictionWriter):
             append_records(manifest, records)
 
     def teardown(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
-        """Close the validation worker pool."""
+        """Close the validation worker pool (robots still queued after an error or an
+        interrupt are cancelled; after a finished batch none are)."""
         if self._pool is not None:
-            self._pool.shutdown()
+            self._pool.shutdown(cancel_futures=True)
             self._pool = None
 
     def on_predict_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:

@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from concurrent.futures import wait
 from pathlib import Path
 
 import pytest
@@ -37,6 +38,21 @@ def test_pool_runs_work_in_other_processes():
     with process_pool(2) as pool:
         pids = {pool.submit(os.getpid).result() for _ in range(4)}
     assert os.getpid() not in pids and 1 <= len(pids) <= 2
+
+
+def test_an_error_in_the_block_cancels_the_queued_work():
+    """The with block waits for its work when it ends normally, and cancels what has not
+    started when it ends with an exception (instead of running all of it first)."""
+    with process_pool(1) as pool:
+        done = [pool.submit(time.sleep, 0.01) for _ in range(5)]
+    assert all(f.done() and not f.cancelled() for f in done)
+    queued = []
+    with pytest.raises(RuntimeError, match="stop"), process_pool(1) as pool:
+        queued = [pool.submit(time.sleep, 0.5) for _ in range(20)]
+        queued[0].result()
+        raise RuntimeError("stop")
+    wait(queued, timeout=5)  # the pool's manager thread cancels them
+    assert sum(f.cancelled() for f in queued) >= 15  # all but those already sent to the worker
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")

@@ -330,7 +330,7 @@ def test_warm_workers_start_at_once_and_drop_queued_robots_on_an_error():
 
     from robovae.generate import pipeline
 
-    with pytest.raises(KeyboardInterrupt), pipeline._workers(2) as pool:
+    with pytest.raises(KeyboardInterrupt), pipeline.worker_pool(2, warm=True) as pool:
         assert len(pool._processes) == 2  # started warm, before any work item
         workers = list(pool._processes.values())
         manager = pool._executor_manager_thread
