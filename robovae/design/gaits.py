@@ -65,12 +65,12 @@ def _destinations(files: Sequence[Path], out: Path | None) -> list[Path]:
     ``prior_rank_0.json``). One file given twice keeps one name (refused by the caller)."""
     if out is None:
         return [f.parent / GAIT_FILE for f in files]
-    names = [_names(f) for f in files]
+    names, same = [_names(f) for f in files], [f.resolve() for f in files]
     depth = [0] * len(files)
     while True:
         takers: dict[str, set[Path]] = {}
-        for f, n, d in zip(files, names, depth):
-            takers.setdefault(n[d], set()).add(f.resolve())
+        for f, n, d in zip(same, names, depth):
+            takers.setdefault(n[d], set()).add(f)
         longer = [i for i, (n, d) in enumerate(zip(names, depth))
                   if len(takers[n[d]]) > 1 and d + 1 < len(n)]
         if not longer:

@@ -1,4 +1,5 @@
-"""Worker processes end with their parent (robovae.data.workers)."""
+"""Worker pools (robovae.data.workers): their workers end with their parent, and a block
+ended by an exception cancels its queued work."""
 
 from __future__ import annotations
 
