@@ -9,11 +9,14 @@ functions live in :mod:`robovae` modules, and a script that starts workers must 
 entry point with ``if __name__ == "__main__":`` (as every multiprocessing program on macOS and
 Windows must).
 
-Used as a context manager, a pool waits for its work when the block ends normally, and cancels
-the work not yet started when it ends with an exception (an error, Ctrl-C, a notebook's
-interrupt): ``concurrent.futures`` would otherwise run every queued item first (``robovae
-gait`` on 30 robots: up to 45 minutes after the interrupt). Items already running finish in
-the background.
+Used as a context manager, a pool waits for its work when the block ends normally, and stops
+at once when it ends with an exception (an error, Ctrl-C, a notebook's interrupt): the work not
+yet started is cancelled and the workers busy with the rest are ended (``SIGTERM``, as
+Python 3.14's ``ProcessPoolExecutor.terminate_workers``). ``concurrent.futures`` would
+otherwise run every queued item first (``robovae gait`` on 30 robots: up to 45 minutes after
+the interrupt), and then the items already running, whose results nobody reads (a script's
+exit waits for them; in a notebook they hold the cores). Workers write their files atomically
+(:func:`robovae.files.atomic_write`), so an ended worker leaves no half-written file.
 
 A worker ends with its parent: killed (``SIGTERM``, ``SIGKILL``, a closed terminal), the
 parent runs no clean-up, and its workers would otherwise go on with the robots already sent
@@ -29,12 +32,29 @@ from threading import Thread
 
 
 class WorkerPool(ProcessPoolExecutor):
-    """A :class:`~concurrent.futures.ProcessPoolExecutor` whose ``with`` block cancels its
-    queued work on an exception instead of waiting for it (module docstring)."""
+    """A :class:`~concurrent.futures.ProcessPoolExecutor` whose ``with`` block, ended by an
+    exception, cancels its queued work and ends its busy workers instead of waiting for them
+    (:meth:`terminate`; module docstring)."""
 
     def __exit__(self, exc_type, exc, tb) -> bool:
-        self.shutdown(wait=exc_type is None, cancel_futures=exc_type is not None)
+        if exc_type is None:
+            self.shutdown(wait=True)
+        else:
+            self.terminate()
         return False
+
+    def terminate(self) -> None:
+        """Stop now: cancel the work not started, send ``SIGTERM`` to every living worker and
+        shut the pool down without waiting. The futures of the ended work fail
+        (:class:`~concurrent.futures.process.BrokenProcessPool`)."""
+        workers = list((self._processes or {}).values())  # shutdown() forgets them
+        self.shutdown(wait=False, cancel_futures=True)
+        for process in workers:
+            try:
+                if process.is_alive():
+                    process.terminate()
+            except (ValueError, ProcessLookupError):  # closed, or ended meanwhile
+                pass
 
 
 def process_pool(workers: int) -> WorkerPool:

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import lightning as L
 
+from robovae.files import atomic_json
+
 REPO = Path(__file__).resolve().parents[2]
 RUNS = Path("runs/experiments")
 DOCS = REPO / "docs"
@@ -166,7 +168,7 @@ def run_one(spec: RunSpec) -> dict:
         "metrics_csv": str(out / "metrics.csv"),
         "commit": _commit(),
     }
-    (out / "result.json").write_text(json.dumps(result, indent=1))
+    atomic_json(out / "result.json", result)  # whole or absent: run_all skips it when present
     del cli
     return result
 

@@ -32,6 +32,7 @@ from robovae.evaluate.experiment_runner import (
     _loadavg,
     _names_arg,
 )
+from robovae.files import atomic_json
 
 __all__ = ["PretrainedWeights", "finetune_specs", "zeroshot"]
 
@@ -101,7 +102,7 @@ def zeroshot(ckpt: str | Path, name: str, menagerie: str | Path = REPO.parent / 
         "summary": {k: summarize(full)[k] for k in ("ra", "ra_true", "exact", "fre")},
         "summary_z": {k: summarize(from_z)[k] for k in ("ra", "ra_true", "exact", "fre")},
     }
-    (out / "result.json").write_text(json.dumps(result, indent=1))
+    atomic_json(out / "result.json", result)
     return result
 
 

@@ -133,9 +133,16 @@ class RobotWriter(BasePredictionWriter):
         with open_manifest(self.out / f"manifest-rank{trainer.global_rank}.jsonl") as manifest:
             append_records(manifest, records)
 
+    def on_exception(self, trainer: L.Trainer, pl_module: L.LightningModule,
+                     exception: BaseException) -> None:
+        """After an error or an interrupt, stop the validation workers at once (robots queued
+        or in hand are dropped: :meth:`robovae.data.workers.WorkerPool.terminate`)."""
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool = None
+
     def teardown(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
-        """Close the validation worker pool (robots still queued after an error or an
-        interrupt are cancelled; after a finished batch none are)."""
+        """Close the validation worker pool (after finished batches nothing is queued)."""
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None

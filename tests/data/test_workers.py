@@ -1,5 +1,5 @@
 """Worker pools (robovae.data.workers): their workers end with their parent, and a block
-ended by an exception cancels its queued work."""
+ended by an exception cancels its queued work and ends its busy workers."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from concurrent.futures import wait
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import pytest
@@ -53,7 +54,25 @@ def test_an_error_in_the_block_cancels_the_queued_work():
         queued[0].result()
         raise RuntimeError("stop")
     wait(queued, timeout=5)  # the pool's manager thread cancels them
-    assert sum(f.cancelled() for f in queued) >= 15  # all but those already sent to the worker
+    assert all(f.done() for f in queued)
+    ran = [f for f in queued if not f.cancelled() and f.exception() is None]
+    assert len(ran) <= 3  # the first, and at most those already sent to the worker
+
+
+def test_an_error_in_the_block_ends_the_busy_workers():
+    """Work in hand is not waited for either: its worker is ended and its future fails."""
+    with pytest.raises(RuntimeError, match="stop"), process_pool(1) as pool:
+        worker = pool.submit(os.getpid).result()
+        busy = pool.submit(time.sleep, 120)
+        while not busy.running():
+            time.sleep(0.01)
+        raise RuntimeError("stop")
+    with pytest.raises(BrokenProcessPool):
+        busy.result(timeout=20)
+    deadline = time.monotonic() + 20
+    while _running(worker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _running(worker), "the busy worker outlived its interrupted pool"
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")

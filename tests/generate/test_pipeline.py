@@ -340,11 +340,27 @@ def test_warm_workers_start_at_once_and_drop_queued_robots_on_an_error():
     while not all(f.done() for f in queued) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert sum(f.cancelled() for f in queued) >= 20
-    # The workers end once their running item is done. The manager thread reaps them:
+    # The workers are ended (WorkerPool.terminate). The manager thread reaps them:
     # joining them here as well would race it for waitpid and misread them as alive.
     manager.join(timeout=60)
     assert not manager.is_alive()
     assert not any(w.is_alive() for w in workers)
+
+
+def test_predict_writer_ends_its_workers_on_an_exception(tmp_path):
+    """``robovae predict`` interrupted: the writer's validation workers stop at once."""
+    import time
+    from concurrent.futures.process import BrokenProcessPool
+
+    from robovae.generate import pipeline
+
+    writer = RobotWriter(str(tmp_path / "pred"), validate=True)
+    writer._pool = pipeline.worker_pool(1, warm=True)
+    busy = writer._pool.submit(time.sleep, 120)
+    writer.on_exception(None, None, KeyboardInterrupt())
+    assert writer._pool is None
+    with pytest.raises(BrokenProcessPool):
+        busy.result(timeout=20)
 
 
 def test_no_worker_starts_for_a_refused_or_finished_run(trained, tmp_path):

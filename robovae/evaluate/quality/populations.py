@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from robovae.data.procedural import parse_procedural, procedural_graphs, write_procedural
+from robovae.files import atomic_write
 
 __all__ = ["HOLDOUT_SEED", "corpus_files", "procedural_files", "real_robot_files", "source_file",
            "written_files"]
@@ -61,7 +62,7 @@ def source_file(source: str, root: str | os.PathLike = "data_cache") -> str:
     path = Path(root) / "raw" / "quality_corpus" / f"proc_{kind}_{int(seed):06d}.xml"
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(procedural_spec(int(seed), kind).to_xml())
+        atomic_write(path, procedural_spec(int(seed), kind).to_xml())  # reused after: whole
     return str(path)
 
 
