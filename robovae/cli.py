@@ -138,7 +138,8 @@ def cmd_gait(args: argparse.Namespace) -> int:
 
     files = robot_files(args.paths)
     res = tune_gaits(files, refine=args.refine, seed=args.seed, step=args.step, out=args.out,
-                     jobs=args.jobs, starts=args.starts, hold=args.hold, noise=args.noise)
+                     jobs=args.jobs, starts=args.starts, hold=args.hold, noise=args.noise,
+                     overwrite=args.overwrite)
     rows = [{"robot": str(f), "walk score": f"{g['walk_score']:.4f}",
              "tuned": f"{g['score']:.4f}", "m/s": f"{g['speed']:.3f}",
              "Hz": "" if g["frequency"] is None else f"{g['frequency']:.2f}",
@@ -320,6 +321,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "step does")
     t.add_argument("--out", help="folder for the gait files (default: gait_tuned.json beside "
                    "each robot)")
+    t.add_argument("--overwrite", action="store_true",
+                   help="replace gait files of other robots at the destinations (e.g. an earlier "
+                        "run's into the same --out)")
     t.add_argument("--jobs", type=int, default=0, help="processes (0: all cores)")
     t.set_defaults(func=cmd_gait)
     r = sub.add_parser("render", help="PNG contact sheet of robots, or original vs "

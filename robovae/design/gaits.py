@@ -24,12 +24,14 @@ from the other robots' (``cma_rank_0.json`` and ``prior_rank_0.json`` for an opt
 run's ``best/*/rank_0``); each written as soon as its robot is done. Every robot
 is loaded, and every destination folder made and tried, before any gait is tuned: a file that
 does not load, a robot that ``robovae/Walk-v0`` refuses (no actuators, an actuated base), two
-robots that would write the same file, or a folder that cannot be written is refused with one
-line.
+robots that would write the same file, a file already there that holds another robot's gait (an
+earlier run into the same folder; ``overwrite`` replaces it), or a folder that cannot be
+written is refused with one line. A robot's own earlier gait is replaced.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Sequence
 from contextlib import nullcontext
@@ -79,6 +81,21 @@ def _destinations(files: Sequence[Path], out: Path | None) -> list[Path]:
             depth[i] += 1
 
 
+def _kept(target: Path, robot: Path) -> None:
+    """Refuse (one line) to replace ``target`` when it exists and is not a gait of ``robot``
+    (its ``robot`` field, written by :func:`_tune`, names another file, or it is no gait)."""
+    if not target.exists():
+        return
+    try:
+        owner = json.loads(target.read_text()).get("robot")
+    except (OSError, ValueError, AttributeError):
+        owner = None
+    if owner != str(robot.resolve()):
+        held = f"the gait of {owner}" if isinstance(owner, str) else "no gait of robovae gait"
+        raise RobovaeError(f"robovae: {target} holds {held}: give another --out, or --overwrite "
+                           "to replace it")
+
+
 def _check(path: Path, step: bool) -> None:
     """Refuse (one line) a robot file that ``robovae/Walk-v0`` refuses (it does not load, has
     no actuators or an actuated base: :func:`robovae.envs.walk.walk_scene`) or, with ``step``,
@@ -104,8 +121,8 @@ def _tune(item: tuple[str, int, int, bool, dict]) -> dict:
 
 def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int = 0,
                step: bool = False, out: str | os.PathLike | None = None, jobs: int = 1,
-               progress: bool = True, starts: int = 4, hold: int = 5, noise: float = 0.05
-               ) -> list[tuple[Path, dict]]:
+               progress: bool = True, starts: int = 4, hold: int = 5, noise: float = 0.05,
+               overwrite: bool = False) -> list[tuple[Path, dict]]:
     """Tune the gait of each robot file and write it (module docstring); returns each gait
     file and its contents, in input order.
 
@@ -114,13 +131,14 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
     ``starts`` times); ``seed``: the walk score's seed (its 8 gaits, CMA-ES's and the noisy
     starts'); ``step``: a robot with a motor on a hinge without limits is refused instead (it
     could roll: task step); ``jobs``: worker processes (0: all cores); ``progress``: a tqdm
-    progress bar.
+    progress bar; ``overwrite``: replace gait files of other robots found at the destinations.
 
     Raises:
         RobovaeError: one line, before any gait is tuned: ``refine`` below 16, ``starts`` or
             ``hold`` below 1, ``noise`` negative, no robot, a missing or broken file, a robot
             without actuators or with an actuated base (with ``step``: wheeled), two robots
-            with one destination, or a destination folder that cannot be written.
+            with one destination, a destination holding another robot's gait (unless
+            ``overwrite``), or a destination folder that cannot be written.
     """
     check_count("--refine", refine, 16)
     check_count("--starts", starts, 1)
@@ -139,6 +157,8 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
         if t.resolve() in seen:
             raise RobovaeError(f"robovae: {seen[t.resolve()]} and {f} would both write {t}")
         seen[t.resolve()] = f
+        if not overwrite:
+            _kept(t, f)
     for f in files:
         _check(f, step)
     for parent in dict.fromkeys(t.parent for t in targets):

@@ -106,6 +106,29 @@ def test_robots_of_one_name_get_their_folders_in_the_file_name(robots, tmp_path)
     assert done[0][1]["score"] == done[1][1]["score"]  # the same body, the same seed
 
 
+def test_a_gait_file_of_another_robot_is_kept_unless_overwrite(robots, tmp_path, capsys):
+    """Two runs into one --out: the second refuses to replace the first's gait of another robot
+    with its own (both robots are some run's rank_0), unless --overwrite."""
+    one, two = (tmp_path / run / "rank_0" / "robot.xml" for run in ("walk1", "walk2"))
+    for f in (one, two):
+        f.parent.mkdir(parents=True)
+        f.write_text(robots["quadruped"].read_text())
+    out, fast = tmp_path / "gaits", {"refine": 16, "starts": 1, "hold": 1, "progress": False}
+    tune_gaits([one], out=out, **fast)
+    first = (out / "rank_0.json").read_text()
+    assert main(["gait", str(two), "--refine", "16", "--starts", "1", "--hold", "1", "--out",
+                 str(out), "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"rank_0.json holds the gait of {one.resolve()}: give another --out" in err
+    assert len(err.strip().splitlines()) == 1 and (out / "rank_0.json").read_text() == first
+    tune_gaits([one], out=out, **fast)  # a robot's own gait is replaced
+    (path, gait), = tune_gaits([two], out=out, overwrite=True, **fast)
+    assert json.loads(path.read_text())["robot"] == gait["robot"] == str(two.resolve())
+    (out / "rank_0.json").write_text("[1, 2]")  # not a gait file
+    with pytest.raises(RobovaeError, match="holds no gait of robovae gait"):
+        tune_gaits([two], out=out, **fast)
+
+
 def test_bad_input_is_refused_in_one_line_before_anything_is_written(robots, tmp_path, capsys):
     passive = procedural_spec(0)
     for a in list(passive.actuators):
