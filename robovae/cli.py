@@ -171,7 +171,10 @@ def cmd_render(args: argparse.Namespace) -> int:
 def cmd_analyze(args: argparse.Namespace) -> int:
     """Statistical view of a checkpoint's training robots and (optionally) its samples."""
     from robovae.evaluate.analyze import analyze, format_report, save_json
+    from robovae.files import writable_file
 
+    if args.json:  # before minutes of analysis whose figures it would lose
+        writable_file(args.json, "report")
     result = analyze(args.ckpt, samples=args.samples, sources=args.source, root=args.root,
                      behaviour=args.behaviour, jobs=args.jobs, permutations=args.permutations,
                      seed=args.seed, max_samples=args.max_samples,

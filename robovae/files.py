@@ -5,7 +5,8 @@ place with ``os.replace``: a reader (or a run continued after a crash) sees the 
 new one, never half of one. Robot files, scene files, procedural robots, reports and
 optimisation logs are written with it; :func:`atomic_json` writes a JSON document so.
 :func:`robot_files` lists the robot files that commands given files and folders work on;
-:func:`writable` checks, before a long run, that its files can be made where they go.
+:func:`writable` and :func:`writable_file` check, before a long run, that its files can be made
+where they go.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 
 from robovae.errors import RobovaeError
 
-__all__ = ["atomic_json", "atomic_write", "robot_files", "writable"]
+__all__ = ["atomic_json", "atomic_write", "robot_files", "writable", "writable_file"]
 
 _ATTEMPTS = 100  # temporary names tried before giving up
 
@@ -95,6 +96,8 @@ def writable(out: str | os.PathLike, what: str = "files") -> Path:
             created or written to.
     """
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise RobovaeError(f"robovae: {out}: cannot write {what} there (a file, not a folder)")
     try:
         out.mkdir(parents=True, exist_ok=True)
         tempfile.TemporaryFile(dir=out).close()
@@ -102,3 +105,17 @@ def writable(out: str | os.PathLike, what: str = "files") -> Path:
         raise RobovaeError(f"robovae: {out}: cannot write {what} there "
                            f"({e.strerror or type(e).__name__})") from None
     return out
+
+
+def writable_file(path: str | os.PathLike, what: str = "files") -> Path:
+    """Check that the file ``path`` can be written, before the work that makes it: it is not a
+    folder, and its folder can be made and written to (:func:`writable`); returns it.
+
+    Raises:
+        RobovaeError: one line naming ``path`` or its folder.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise RobovaeError(f"robovae: {path}: a folder, not a file name for the {what}")
+    writable(path.parent, what)
+    return path

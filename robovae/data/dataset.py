@@ -28,6 +28,7 @@ from robovae.data.procedural.batch import procedural_graphs
 from robovae.data.sources import resolve_sources
 from robovae.data.workers import process_pool
 from robovae.errors import RobotFileError, RobovaeError
+from robovae.files import writable
 
 log = logging.getLogger("robovae")
 
@@ -126,6 +127,8 @@ class RobotDataset(InMemoryDataset):
         self._key = self._fingerprint()
         made = [d for d in (root / "processed", root / "raw", root) if not d.exists()]
         try:
+            if not root.is_dir():  # to be made: one line if it cannot (an existing cache may
+                writable(root, "the dataset cache")  # be read-only: not tried)
             super().__init__(str(root), transform=transform, force_reload=force_reload,
                              log=False)
         except BaseException:  # a failed build leaves no empty cache folders behind

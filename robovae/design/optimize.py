@@ -98,7 +98,7 @@ from robovae.design.results import (
 )
 from robovae.design.score import SCORE_VERSION, TASKS
 from robovae.errors import RobovaeError
-from robovae.files import atomic_json
+from robovae.files import atomic_json, writable
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.generate.writer import WRITER as WRITTEN
 from robovae.model.checkpoint import own_model
@@ -416,7 +416,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
                score_sets, restart_after, local_step, distinct)
     run.load()
-    out.mkdir(parents=True, exist_ok=True)
+    writable(out, "the run's files")
     from tqdm.auto import tqdm
 
     done = sum(min(len(v), budget) for v in run.log["evaluations"].values())

@@ -63,6 +63,7 @@ from torch_geometric.data import Batch
 
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.errors import RobovaeError
+from robovae.files import writable
 from robovae.generate.pipeline import (
     MANIFEST,
     GenerationReport,
@@ -266,8 +267,8 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
         ``reason``; plus ``sheet`` (PNG path or None).
 
     Raises:
-        RobovaeError: ``steps < 2``, a bad checkpoint, ``out`` not empty. RobotFileError: ``a``
-            or ``b`` is not a robot.
+        RobovaeError: ``steps < 2``, a bad checkpoint, ``out`` not empty or its folder not
+            writable. RobotFileError: ``a`` or ``b`` is not a robot.
     """
     from robovae.evaluate.render import contact_sheet
     from robovae.generate.interpolate import interpolate
@@ -276,9 +277,9 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
         raise RobovaeError(f"robovae: --steps must be >= 2 (the two ends), got {steps}")
     out = Path(out)
     _check_out(out)
+    writable(out.parent, "the path")
     model = own_model(model)  # decoded in float64: never the caller's object
     ga, gb = mjcf_to_graph(a, model.feature_set), mjcf_to_graph(b, model.feature_set)
-    out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         path = interpolate(model, ga, gb, steps=steps, out=tmp, validate=validate)

@@ -60,7 +60,7 @@ from robovae.evaluate.quality.populations import (
 )
 from robovae.evaluate.quality.report import contact_sheets, quality_table
 from robovae.evaluate.tables import format_table
-from robovae.files import atomic_json
+from robovae.files import atomic_json, writable
 from robovae.generate.pipeline import read_manifest
 from robovae.model.checkpoint import load_model, read_checkpoint
 from robovae.model.vae import RoboVAE
@@ -231,6 +231,8 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     if gait_search not in GAIT_SEARCHES:
         raise RobovaeError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
                            f"not {gait_search!r}")
+    if sheets is not None:  # before minutes of work, not after
+        writable(sheets, "contact sheets")
     files = sample_files(samples) if samples is not None else []  # checked first
     if samples is not None and not files:
         raise RobovaeError(f"robovae: {samples}: no robot to analyse (no robot_*/robot.xml or "

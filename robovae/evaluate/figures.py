@@ -12,7 +12,7 @@ from robovae.errors import RobovaeError, check_count
 from robovae.evaluate.graph_drawing import draw_graph
 from robovae.evaluate.metrics import reconstruction_metrics
 from robovae.evaluate.render import contact_sheet, side_by_side
-from robovae.files import robot_files
+from robovae.files import robot_files, writable_file
 from robovae.generate.writer import write_robot
 from robovae.model.checkpoint import load_model
 from robovae.model.vae import RoboVAE
@@ -30,9 +30,8 @@ def reconstruction_figure(model: RoboVAE | str | Path, robot: str | Path,
     matplotlib.use("Agg")
     from matplotlib import pyplot as plt
 
+    out = writable_file(out, "picture")  # before the model loads
     model = model if isinstance(model, RoboVAE) else load_model(model)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     truth = mjcf_to_graph(robot, model.feature_set.name)
     recon = model.reconstruct(truth)[0]
     res = reconstruction_metrics(truth, recon, model.normalizer)

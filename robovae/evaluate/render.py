@@ -42,6 +42,7 @@ from robovae.evaluate.scene import (  # noqa: E402
     scene_option,
     settle,
 )
+from robovae.files import writable_file  # noqa: E402
 
 __all__ = ["contact_sheet", "render_robot", "robot_camera", "save_png", "side_by_side"]
 
@@ -225,8 +226,9 @@ def contact_sheet(items: Sequence[Robot], path: str | os.PathLike, columns: int 
         ``path`` as a ``Path``.
 
     Raises:
-        RobovaeError: no robot could be drawn (the first one's error; nothing is written), or
-            the sheet would exceed :data:`MAX_SHEET_PIXELS` (refused before any rendering).
+        RobovaeError: no robot could be drawn (the first one's error; nothing is written), the
+            sheet would exceed :data:`MAX_SHEET_PIXELS`, or ``path`` cannot be written (both
+            refused before any rendering).
     """
     items = list(items)[: max_items if max_items is not None else None]
     if not items:
@@ -236,6 +238,7 @@ def contact_sheet(items: Sequence[Robot], path: str | os.PathLike, columns: int 
                            f"{size[1]} px is over {MAX_SHEET_PIXELS:,} pixels: draw at most "
                            f"{MAX_SHEET_PIXELS // (size[0] * size[1])} (render --first); "
                            f"nothing written to {path}")
+    writable_file(path, "contact sheet")
     labels = list(labels) if labels is not None else [_label_of(it, i)
                                                       for i, it in enumerate(items)]
     if len(labels) < len(items):
@@ -271,7 +274,9 @@ def side_by_side(original: Robot, reconstruction: Robot, path: str | os.PathLike
                  titles: tuple[str, str] = ("original", "reconstruction"),
                  size: tuple[int, int] = (480, 360), settle_seconds: float = 0.0) -> Path:
     """Render two robots from the same camera (fitted to ``original``) next to each other,
-    like the paper's Figure 4. Writes a ``(2w) × h`` PNG and returns its path."""
+    like the paper's Figure 4. Writes a ``(2w) × h`` PNG and returns its path (a path that
+    cannot be written: :class:`RobovaeError` before any rendering)."""
+    writable_file(path, "picture")
     w, h = size
     prep = prepare(original, w, h)
     settle(prep, settle_seconds)

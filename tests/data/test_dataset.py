@@ -120,6 +120,17 @@ def test_only_bad_files_give_one_line_and_leave_no_cache_folder(tmp_path):
     assert ds.names == ["c"] and len(ds.report["skipped"]) == 2
 
 
+def test_a_cache_folder_that_cannot_be_made_is_one_line(tmp_path, capsys):
+    """``robovae data --root`` inside a file: one line naming the folder, no traceback."""
+    from robovae.cli import main
+
+    (tmp_path / "file").write_text("keep")
+    assert main(["data", "--root", str(tmp_path / "file" / "cache"), "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "file/cache: cannot write the dataset cache there" in err
+    assert len(err.strip().splitlines()) == 1 and (tmp_path / "file").read_text() == "keep"
+
+
 def test_datamodule_split_by_name_fits_normalizer_on_train(cache_root, menagerie_dir):
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
                          train_names=["go1", "a1"], test_names=["go2"], batch_size=2)

@@ -289,6 +289,17 @@ def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, messa
     assert message in err and err.count("\n") == 1 and not out.exists()
 
 
+def test_optimize_refuses_an_out_inside_a_file(trained_nodes, tmp_path, capsys):
+    _, _, ckpt = trained_nodes
+    (tmp_path / "file").write_text("keep")
+    out = tmp_path / "file" / "o"
+    assert main(["optimize", "--ckpt", str(ckpt), "--task", "stand", "--budget", "2",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "file/o: cannot write the run's files there" in err and err.count("\n") == 1
+    assert (tmp_path / "file").read_text() == "keep"
+
+
 def test_optimize_refuses_a_bad_checkpoint_and_another_runs_log(trained_nodes, tmp_path,
                                                                  capsys):
     bad = tmp_path / "bad.ckpt"

@@ -195,6 +195,17 @@ def test_interpolate_refuses_bad_input(trained_nodes, files, tmp_path, capsys, c
     assert sorted(p.name for p in tmp_path.iterdir()) == (["path"] if case == "out" else [])
 
 
+def test_interpolate_refuses_an_out_inside_a_file(trained_nodes, files, tmp_path, capsys):
+    _, _, ckpt = trained_nodes
+    a, b, _ = files
+    (tmp_path / "file").write_text("keep")
+    assert main(["interpolate", str(a), str(b), "--ckpt", str(ckpt), "--steps", "3", "--out",
+                 str(tmp_path / "file" / "path")]) == 2
+    err = capsys.readouterr().err
+    assert "file: cannot write the path there (a file, not a folder)" in err
+    assert err.count("\n") == 1 and (tmp_path / "file").read_text() == "keep"
+
+
 def test_bad_checkpoint_is_refused(files, tmp_path, capsys):
     ck = tmp_path / "not.ckpt"
     ck.write_text("nope")

@@ -207,3 +207,22 @@ def test_analyze_measures_procedural_training_robots(trained, tmp_path) -> None:
     rows = res["training"]["behaviour"]
     assert len(rows) == 2 and not any("error" in r for r in rows)
     assert all(Path(r["robot"]).is_file() for r in rows)
+
+
+def test_analyze_refuses_an_unwritable_json_or_sheets_before_any_work(trained, tmp_path,
+                                                                      capsys) -> None:
+    """--json and --sheets are checked first: a report lost after minutes of measures would
+    be the other outcome."""
+    _, _, ckpt = trained
+    (tmp_path / "file").write_text("")
+    cache = tmp_path / "cache"
+    for flag, value, message in (("--json", tmp_path, "a folder, not a file name for the report"),
+                                 ("--json", tmp_path / "file" / "r.json",
+                                  "file: cannot write report there"),
+                                 ("--sheets", tmp_path / "file" / "sheets",
+                                  "file/sheets: cannot write contact sheets there")):
+        rc = main(["analyze", "--ckpt", str(ckpt), "--behaviour", "0", "--root", str(cache),
+                   flag, str(value)])
+        err = capsys.readouterr().err
+        assert rc == 2 and message in err and len(err.strip().splitlines()) == 1, err
+        assert not cache.exists()

@@ -32,3 +32,23 @@ def test_cli_render_contact_sheet_of_samples(trained, tmp_path, capsys):
     assert mpimg.imread(out).shape[:2] == (2 * 180, 2 * 240)
     assert main(["render", str(tmp_path / "nope"), "--out", str(out)]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_cli_render_refuses_an_unwritable_out_in_one_line_before_rendering(trained, tmp_path,
+                                                                            capsys):
+    """A folder given as --out, or one inside a file: one line each, nothing rendered."""
+    _, _, ckpt = trained
+    hopper = str(dict(zoo_files()[0])["gym_hopper"])
+    (tmp_path / "file").write_text("")
+    (tmp_path / "folder").mkdir()
+    cases = [([hopper, "--out", str(tmp_path / "folder")], "folder: a folder, not a file name"),
+             ([hopper, "--out", str(tmp_path / "file" / "s.png")],
+              "file: cannot write contact sheet there"),
+             ([hopper, "--ckpt", str(ckpt), "--out", str(tmp_path / "file" / "r.png")],
+              "file: cannot write picture there")]
+    for argv, message in cases:
+        assert main(["render", *argv]) == 2
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "folder"]
+    assert not any((tmp_path / "folder").iterdir())
