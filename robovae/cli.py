@@ -137,6 +137,8 @@ def cmd_gait(args: argparse.Namespace) -> int:
     from robovae.files import robot_files
 
     files = robot_files(args.paths)
+    if not files:  # folders without robot files
+        raise RobovaeError(f"robovae: {', '.join(args.paths)}: no robot files")
     res = tune_gaits(files, refine=args.refine, seed=args.seed, step=args.step, out=args.out,
                      jobs=args.jobs, starts=args.starts, hold=args.hold, noise=args.noise,
                      overwrite=args.overwrite)

@@ -145,7 +145,9 @@ def test_bad_input_is_refused_in_one_line_before_anything_is_written(robots, tmp
              ([q, str(tmp_path / "broken.xml")], "broken.xml"),
              ([q, str(tmp_path / "nope.xml")], "nope.xml: no such file or folder"),
              ([q, mobile, "--step"], "mobile/robot.xml: wheeled"),
-             ([q, str(robots["quadruped"].parent)], "would both write")]
+             ([q, str(robots["quadruped"].parent)], "would both write"),
+             ([str(tmp_path / "empty")], "empty: no robot files")]
+    (tmp_path / "empty").mkdir()
     for argv, message in cases:
         assert main(["gait", *argv, "--out", str(out), "--jobs", "1"]) == 2
         err = capsys.readouterr().err
