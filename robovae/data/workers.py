@@ -47,6 +47,9 @@ class WorkerPool(ProcessPoolExecutor):
         """Stop now: cancel the work not started, send ``SIGTERM`` to every living worker and
         shut the pool down without waiting. The futures of the ended work fail
         (:class:`~concurrent.futures.process.BrokenProcessPool`)."""
+        if hasattr(ProcessPoolExecutor, "terminate_workers"):  # Python 3.14+: the same
+            self.terminate_workers()
+            return
         workers = list((self._processes or {}).values())  # shutdown() forgets them
         self.shutdown(wait=False, cancel_futures=True)
         for process in workers:
