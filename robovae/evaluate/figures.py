@@ -6,16 +6,14 @@ from __future__ import annotations
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from robovae.data.mjcf import mjcf_to_graph
 from robovae.errors import RobovaeError, check_count
-from robovae.evaluate.graph_drawing import draw_graph
-from robovae.evaluate.metrics import reconstruction_metrics
 from robovae.evaluate.render import contact_sheet, side_by_side
 from robovae.files import robot_files, writable_file
-from robovae.generate.writer import write_robot
-from robovae.model.checkpoint import load_model
-from robovae.model.vae import RoboVAE
+
+if TYPE_CHECKING:
+    from robovae.model.vae import RoboVAE
 
 
 def reconstruction_figure(model: RoboVAE | str | Path, robot: str | Path,
@@ -29,6 +27,14 @@ def reconstruction_figure(model: RoboVAE | str | Path, robot: str | Path,
 
     matplotlib.use("Agg")
     from matplotlib import pyplot as plt
+
+    # here, not at the top: a contact sheet (sample_sheet) needs neither torch nor PyG
+    from robovae.data.mjcf import mjcf_to_graph
+    from robovae.evaluate.graph_drawing import draw_graph
+    from robovae.evaluate.metrics import reconstruction_metrics
+    from robovae.generate.writer import write_robot
+    from robovae.model.checkpoint import load_model
+    from robovae.model.vae import RoboVAE
 
     out = writable_file(out, "picture")  # before the model loads
     model = model if isinstance(model, RoboVAE) else load_model(model)
