@@ -58,7 +58,10 @@ def cmd_data(args: argparse.Namespace) -> int:
 
 def cmd_generate(args: argparse.Namespace) -> int:
     """Sample robots from a checkpoint, write MJCF, validate, print the sample report."""
+    from robovae import options  # before the heavy imports (robovae.options)
+
     if args.like:
+        options.check_like(args.radius, args.n, args.redraws)
         from robovae.design.variations import generate_like
 
         report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
@@ -68,6 +71,8 @@ def cmd_generate(args: argparse.Namespace) -> int:
         print(report.format())
         print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
         return 0
+    options.check_generate(args.n, args.temperature, args.node_temperature, args.batch_size,
+                           args.jobs, args.redraws)
     from robovae.generate.pipeline import generate
 
     report = generate(args.ckpt, args.n, args.out, seed=args.seed,
@@ -84,6 +89,9 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
 def cmd_interpolate(args: argparse.Namespace) -> int:
     """Decode the latent path between two robots, validate each step, draw a contact sheet."""
+    from robovae.options import check_interpolate
+
+    check_interpolate(args.steps)  # before the heavy imports (robovae.options)
     from robovae.design.variations import interpolate_files
 
     res = interpolate_files(args.ckpt, args.a, args.b, args.steps, args.out,
@@ -98,6 +106,10 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
 
 def cmd_optimize(args: argparse.Namespace) -> int:
     """CMA-ES over the latent space for a task, with random-prior and procedural baselines."""
+    from robovae.options import check_optimize
+
+    check_optimize(args.task, args.budget, args.top, args.variance, args.population,  # before
+                   args.score_sets, args.restart_after, args.local_step, args.distinct)  # torch
     from robovae.design.optimize import METHODS, optimize
     from robovae.design.score import GAIT_TASKS
 
@@ -172,11 +184,17 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     """Statistical view of a checkpoint's training robots and (optionally) its samples."""
-    from robovae.evaluate.analyze import analyze, format_report, save_json
     from robovae.files import writable_file
+    from robovae.options import check_analyze
 
-    if args.json:  # before minutes of analysis whose figures it would lose
+    check_analyze(behaviour=args.behaviour, jobs=args.jobs, permutations=args.permutations,
+                  quality=args.quality, procedural=args.procedural, max_samples=args.max_samples,
+                  entropy_seconds=args.entropy_seconds, gait_rollouts=args.gait_rollouts,
+                  gait_search=args.gait_search)  # before the heavy imports (robovae.options)
+    if args.json:  # and before minutes of analysis whose figures it would lose
         writable_file(args.json, "report")
+    from robovae.evaluate.analyze import analyze, format_report, save_json
+
     result = analyze(args.ckpt, samples=args.samples, sources=args.source, root=args.root,
                      behaviour=args.behaviour, jobs=args.jobs, permutations=args.permutations,
                      seed=args.seed, max_samples=args.max_samples,

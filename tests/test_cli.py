@@ -106,3 +106,30 @@ def test_analyze_counts_are_checked_first(option, value, least, tmp_path, capsys
     assert capsys.readouterr().err == (f"robovae: {option} must be an integer of at least "
                                        f"{least}, not {value}\n")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_option_mistakes_are_refused_before_torch_is_imported(tmp_path) -> None:
+    """A mistyped option of generate, generate --like, interpolate, optimize or analyze is
+    refused by robovae.options before the command imports torch, PyG and Lightning (5-9 s)."""
+    robot = str(dict(zoo_files()[0])["gym_hopper"])
+    ck, out = str(tmp_path / "none.ckpt"), str(tmp_path / "out")
+    cases = [["generate", "--ckpt", ck, "-n", "-5", "--out", out],
+             ["generate", "--ckpt", ck, "--like", robot, "--radius", "-1", "--out", out],
+             ["interpolate", robot, robot, "--ckpt", ck, "--steps", "1", "--out", out],
+             ["optimize", "--ckpt", ck, "--task", "fly", "--budget", "2", "--out", out],
+             ["optimize", "--ckpt", ck, "--task", "walk", "--budget", "2", "--distinct", "-1",
+              "--out", out],
+             ["analyze", "--ckpt", ck, "--entropy-seconds", "0"]]
+    script = ("import json, sys\n"
+              "from robovae.cli import main\n"
+              f"codes = [main(argv) for argv in {cases!r}]\n"
+              "print(json.dumps([codes, [m for m in ('torch', 'torch_geometric', 'lightning')"
+              " if m in sys.modules]]))\n")
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True)
+    codes, loaded = __import__("json").loads(run.stdout.strip().splitlines()[-1])
+    assert codes == [2] * len(cases) and loaded == []
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == len(cases) and all(line.startswith("robovae: ") for line in lines)
+    assert "-n) must be a positive integer" in lines[0] and "--distinct" in lines[4]
+    assert list(tmp_path.iterdir()) == []

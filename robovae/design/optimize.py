@@ -96,7 +96,7 @@ from robovae.design.results import (
     plot,
     write_best,
 )
-from robovae.design.score import SCORE_VERSION, TASKS
+from robovae.design.score import SCORE_VERSION
 from robovae.errors import RobovaeError
 from robovae.files import atomic_json, writable
 from robovae.generate.pipeline import model_fingerprint, worker_pool
@@ -104,6 +104,7 @@ from robovae.generate.writer import WRITER as WRITTEN
 from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
+from robovae.options import check_optimize
 
 __all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "optimize", "procedural_seed",
            "score_seeds"]
@@ -391,24 +392,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
             ``population < 2``, ``score_sets < 1``, ``restart_after < 1``, ``local_step`` not
             > 0, ``distinct`` < 0, bad checkpoint, ``out`` not usable.
     """
-    if task not in TASKS:
-        raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
-    if budget <= 0:
-        raise RobovaeError(f"robovae: --budget must be > 0, got {budget}")
-    if top < 1:
-        raise RobovaeError(f"robovae: --top must be >= 1, got {top}")
-    if not 0.0 < variance <= 1.0:
-        raise RobovaeError(f"robovae: --variance must be in (0, 1], got {variance}")
-    if population is not None and population < 2:
-        raise RobovaeError(f"robovae: --population must be >= 2, got {population}")
-    if score_sets < 1:
-        raise RobovaeError(f"robovae: --score-sets must be >= 1, got {score_sets}")
-    if restart_after < 1:
-        raise RobovaeError(f"robovae: --restart-after must be >= 1, got {restart_after}")
-    if not (local_step > 0 and math.isfinite(local_step)):
-        raise RobovaeError(f"robovae: --local-step must be > 0, got {local_step}")
-    if not (distinct >= 0 and math.isfinite(distinct)):
-        raise RobovaeError(f"robovae: --distinct must be >= 0, got {distinct}")
+    check_optimize(task, budget, top, variance, population, score_sets, restart_after,
+                   local_step, distinct)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")

@@ -82,6 +82,7 @@ from robovae.model.checkpoint import own_model
 from robovae.model.node_transfer import EncodedRobot, decode_near
 from robovae.model.prior import latent_rng, redraw_unfinished
 from robovae.model.vae import RoboVAE
+from robovae.options import check_interpolate, check_like
 
 __all__ = ["ball_offsets", "draw_variations", "encode_file", "generate_like",
            "interpolate_files", "like_metrics", "prior_spread", "reconstruction_record",
@@ -137,12 +138,7 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
             ``out`` holds robots of another run (unless ``overwrite``). RobotFileError:
             ``robot`` is not a robot.
     """
-    if not (math.isfinite(radius) and radius >= 0):
-        raise RobovaeError(f"robovae: --radius must be a finite number >= 0, got {radius}")
-    if n < 1:
-        raise RobovaeError(f"robovae: -n must be >= 1, got {n}")
-    if isinstance(redraws, bool) or not isinstance(redraws, int) or redraws < 0:
-        raise RobovaeError(f"robovae: --redraws must be a non-negative integer, got {redraws!r}")
+    check_like(radius, n, redraws)
     start = time.perf_counter()
     model = own_model(model)  # decoded in float64: never the caller's object
     encoded = encode_file(model, robot)  # refuses a bad file before anything is written
@@ -273,8 +269,7 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
     from robovae.evaluate.render import contact_sheet
     from robovae.generate.interpolate import interpolate
 
-    if steps < 2:
-        raise RobovaeError(f"robovae: --steps must be >= 2 (the two ends), got {steps}")
+    check_interpolate(steps)
     out = Path(out)
     _check_out(out)
     writable(out.parent, "the path")

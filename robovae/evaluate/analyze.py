@@ -45,11 +45,10 @@ from robovae.data.dataset import RobotDataset
 from robovae.data.graph import RobotData
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.data.workers import process_pool
-from robovae.errors import RobovaeError, check_count
+from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import behaviour_many, summarize_behaviour
 from robovae.evaluate.descriptors import DESCRIPTORS, descriptors, robot_category
 from robovae.evaluate.population import compare, latent_stats, summary
-from robovae.evaluate.quality.gait_search import GAIT_SEARCHES
 from robovae.evaluate.quality.measure import measure_many
 from robovae.evaluate.quality.populations import (
     HOLDOUT_SEED,
@@ -64,6 +63,7 @@ from robovae.files import atomic_json, writable
 from robovae.generate.pipeline import read_manifest
 from robovae.model.checkpoint import load_model, read_checkpoint
 from robovae.model.vae import RoboVAE
+from robovae.options import check_analyze
 
 
 @torch.no_grad()
@@ -175,18 +175,6 @@ def _population(model: RoboVAE, graphs: Sequence[RobotData], files: Sequence[str
     return out
 
 
-def _check_counts(max_samples: int | None, entropy_seconds: float, **counts: int) -> None:
-    """Refuse a negative count (``max_samples`` below 1, a non-positive episode length) with
-    one line naming the option, before anything is loaded."""
-    for name, k in counts.items():
-        check_count(f"--{name}", k, 0)
-    if max_samples is not None:
-        check_count("--max-samples", max_samples, 1)
-    if not 0 < entropy_seconds < math.inf:
-        raise RobovaeError(f"robovae: --entropy-seconds must be a positive number, not "
-                           f"{entropy_seconds!r}")
-
-
 def analyze(ckpt: str | Path, samples: str | Path | None = None,
             sources: Sequence[str] | None = None, root: str | Path = "data_cache",
             behaviour: int = 100, jobs: int = 1, permutations: int = 200, seed: int = 0,
@@ -225,12 +213,10 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         ``quality`` (per-population records, table rows and numbers).
     """
     start = time.perf_counter()
-    _check_counts(behaviour=behaviour, jobs=jobs, permutations=permutations, quality=quality,
-                  procedural=procedural, max_samples=max_samples, entropy_seconds=entropy_seconds)
-    check_count("--gait-rollouts", gait_rollouts, 1)
-    if gait_search not in GAIT_SEARCHES:
-        raise RobovaeError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
-                           f"not {gait_search!r}")
+    check_analyze(behaviour=behaviour, jobs=jobs, permutations=permutations, quality=quality,
+                  procedural=procedural, max_samples=max_samples,
+                  entropy_seconds=entropy_seconds, gait_rollouts=gait_rollouts,
+                  gait_search=gait_search)
     if sheets is not None:  # before minutes of work, not after
         writable(sheets, "contact sheets")
     files = sample_files(samples) if samples is not None else []  # checked first

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import re
 import shutil
@@ -40,7 +39,7 @@ import torch
 from robovae.data.graph import RobotData
 from robovae.data.tree_arrays import TreeArrays
 from robovae.data.workers import WorkerPool, process_pool
-from robovae.errors import RobovaeError, check_count
+from robovae.errors import RobovaeError
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
 from robovae.files import atomic_json, writable
@@ -50,6 +49,7 @@ from robovae.generate.writer import WRITER
 from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import PRIORS, RoboVAE
+from robovae.options import check_generate
 
 MANIFEST = "manifest.jsonl"
 SUMMARY = "summary.json"
@@ -229,17 +229,7 @@ def generate(
     """
     if prior is not None and prior not in PRIORS:
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")
-    if isinstance(redraws, bool) or not isinstance(redraws, int) or redraws < 0:
-        raise RobovaeError(f"robovae: --redraws must be a non-negative integer, got {redraws!r}")
-    for name, t in (("--temperature", temperature), ("--node-temperature", node_temperature)):
-        if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))
-                              or not 0 <= t < math.inf):
-            raise RobovaeError(f"robovae: {name} must be a non-negative number, got {t!r}")
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
-                           f"not {n!r}")
-    check_count("--batch-size", batch_size, 1)
-    check_count("--jobs", jobs, 0)
+    check_generate(n, temperature, node_temperature, batch_size, jobs, redraws)
     start = time.perf_counter()
     model = own_model(model)
     if prior is not None:
