@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import os
 import random
+import subprocess
+import sys
 from pathlib import Path
+from typing import Any
 
 import lightning as L
 import numpy as np
@@ -20,6 +24,9 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_MENAGERIE = Path(os.environ.get("ROBOVAE_SHARED_MENAGERIE",
                                        REPO.parent / "shared" / "menagerie"))
 CORPUS = REPO / "tests" / "data" / "corpus"
+
+#: the libraries a light code path must not import (seconds each)
+HEAVY = ("torch", "torch_geometric", "lightning")
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 if os.environ.get("PYTEST_XDIST_WORKER"):  # two test processes on two cores: one thread each
@@ -38,6 +45,17 @@ def menagerie_dir() -> Path:
 def cache_root(tmp_path_factory) -> Path:
     """One dataset cache folder for the whole session."""
     return tmp_path_factory.mktemp("data_cache")
+
+
+def in_fresh_python(code: str) -> tuple[Any, list[str], str]:
+    """Run ``code``, which sets ``result`` (JSON-ready), in a new interpreter; returns
+    ``result``, the modules of :data:`HEAVY` it imported, and its stderr."""
+    script = (f"{code}\nimport json as _json, sys as _sys\n"
+              f"print(_json.dumps([result, [m for m in {HEAVY!r} if m in _sys.modules]]))\n")
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True)
+    result, loaded = json.loads(run.stdout.strip().splitlines()[-1])
+    return result, loaded, run.stderr
 
 
 def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:

@@ -11,6 +11,7 @@ import pytest
 
 from robovae.cli import main
 from robovae.data.zoo import zoo_files
+from tests.conftest import in_fresh_python
 
 BAD_XML = "<mujoco><worldbody><body></mujoco>"
 
@@ -120,16 +121,10 @@ def test_option_mistakes_are_refused_before_torch_is_imported(tmp_path) -> None:
              ["optimize", "--ckpt", ck, "--task", "walk", "--budget", "2", "--distinct", "-1",
               "--out", out],
              ["analyze", "--ckpt", ck, "--entropy-seconds", "0"]]
-    script = ("import json, sys\n"
-              "from robovae.cli import main\n"
-              f"codes = [main(argv) for argv in {cases!r}]\n"
-              "print(json.dumps([codes, [m for m in ('torch', 'torch_geometric', 'lightning')"
-              " if m in sys.modules]]))\n")
-    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         check=True)
-    codes, loaded = __import__("json").loads(run.stdout.strip().splitlines()[-1])
+    codes, loaded, err = in_fresh_python("from robovae.cli import main\n"
+                                         f"result = [main(argv) for argv in {cases!r}]")
     assert codes == [2] * len(cases) and loaded == []
-    lines = run.stderr.strip().splitlines()
+    lines = err.strip().splitlines()
     assert len(lines) == len(cases) and all(line.startswith("robovae: ") for line in lines)
     assert "-n) must be a positive integer" in lines[0] and "--distinct" in lines[4]
     assert list(tmp_path.iterdir()) == []

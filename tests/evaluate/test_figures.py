@@ -10,6 +10,7 @@ from robovae.data.zoo import zoo_files
 from robovae.evaluate.figures import reconstruction_figure
 from robovae.files import robot_files
 from robovae.generate.pipeline import generate
+from tests.conftest import in_fresh_python
 
 
 def test_reconstruction_figure(trained, tmp_path):
@@ -57,17 +58,9 @@ def test_cli_render_refuses_an_unwritable_out_in_one_line_before_rendering(train
 def test_a_contact_sheet_needs_neither_torch_nor_pyg(tmp_path):
     """``robovae render`` without ``--ckpt`` imports no model code: a refusal comes in under a
     second, a sheet without the 5 s of torch and PyG imports."""
-    import json
-    import subprocess
-    import sys
-
     hopper = str(dict(zoo_files()[0])["gym_hopper"])
-    script = ("import json, sys\n"
-              "from robovae.evaluate.figures import sample_sheet\n"
-              f"sample_sheet([{hopper!r}], {str(tmp_path / 's.png')!r})\n"
-              "print(json.dumps([m for m in ('torch', 'torch_geometric', 'lightning')"
-              " if m in sys.modules]))\n")
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         check=True, env={**__import__("os").environ, "MUJOCO_GL": "egl"})
-    assert json.loads(out.stdout.strip().splitlines()[-1]) == []
+    _, loaded, _ = in_fresh_python("from robovae.evaluate.figures import sample_sheet\n"
+                                   f"result = str(sample_sheet([{hopper!r}], "
+                                   f"{str(tmp_path / 's.png')!r}))")
+    assert loaded == []
     assert mpimg.imread(tmp_path / "s.png").shape[:2] == (180, 240)
