@@ -36,19 +36,19 @@ class WorkerPool(ProcessPoolExecutor):
     exception, cancels its queued work and ends its busy workers instead of waiting for them
     (:meth:`terminate`; module docstring)."""
 
-    def __exit__(self, exc_type, exc, tb) -> bool:
+    def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is None:
             self.shutdown(wait=True)
         else:
             self.terminate()
-        return False
 
     def terminate(self) -> None:
         """Stop now: cancel the work not started, send ``SIGTERM`` to every living worker and
         shut the pool down without waiting. The futures of the ended work fail
         (:class:`~concurrent.futures.process.BrokenProcessPool`)."""
-        if hasattr(ProcessPoolExecutor, "terminate_workers"):  # Python 3.14+: the same
-            self.terminate_workers()
+        stop = getattr(super(), "terminate_workers", None)  # Python 3.14+: the same
+        if stop is not None:
+            stop()
             return
         workers = list((self._processes or {}).values())  # shutdown() forgets them
         self.shutdown(wait=False, cancel_futures=True)
