@@ -35,9 +35,10 @@ class PriorModel(Protocol):
                      draw: int = 0) -> torch.Tensor:
         """The latent of robot ``index`` (draw ``draw``) from the model's sampling prior."""
 
-    def decode(self, z: torch.Tensor, node_noise: torch.Tensor | None = None
+    def decode(self, z: torch.Tensor, *, node_noise: torch.Tensor | None = None
                ) -> list[RobotData]:
-        """Robot graphs decoded from latents ``z``."""
+        """Robot graphs decoded from latents ``z`` (``node_noise`` given by keyword: a model's
+        ``decode`` may take other arguments before it)."""
 
 
 def latent_rng(seed: int, index: int, draw: int = 0) -> np.random.Generator:
