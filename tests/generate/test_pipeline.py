@@ -355,8 +355,10 @@ def test_predict_writer_ends_its_workers_on_an_exception(tmp_path):
     from robovae.generate import pipeline
 
     writer = RobotWriter(str(tmp_path / "pred"), validate=True)
-    writer._pool = pipeline.worker_pool(1, warm=True)
-    busy = writer._pool.submit(time.sleep, 120)
+    pool = writer._pool = pipeline.worker_pool(1, warm=True)
+    busy = pool.submit(time.sleep, 120)
+    while not busy.running():  # sent to the worker (else it is only cancelled)
+        time.sleep(0.01)
     writer.on_exception(None, None, KeyboardInterrupt())
     assert writer._pool is None
     with pytest.raises(BrokenProcessPool):
