@@ -109,13 +109,16 @@ def writable(out: str | os.PathLike, what: str = "files") -> Path:
 
 def writable_file(path: str | os.PathLike, what: str = "files") -> Path:
     """Check that the file ``path`` can be written, before the work that makes it: it is not a
-    folder, and its folder can be made and written to (:func:`writable`); returns it.
+    folder, and the nearest of its folders that exists is a folder that can be written to
+    (:func:`writable`); returns it. Makes no folder: a run refused later leaves none behind
+    (the writer makes ``path``'s folder).
 
     Raises:
-        RobovaeError: one line naming ``path`` or its folder.
+        RobovaeError: one line naming ``path`` or that folder.
     """
     path = Path(path)
     if path.is_dir():
         raise RobovaeError(f"robovae: {path}: a folder, not a file name for the {what}")
-    writable(path.parent, what)
+    folder = path.parent
+    writable(next(p for p in (folder, *folder.parents) if p.exists()), what)
     return path

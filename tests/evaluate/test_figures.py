@@ -53,6 +53,11 @@ def test_cli_render_refuses_an_unwritable_out_in_one_line_before_rendering(train
         assert message in err and len(err.strip().splitlines()) == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "folder"]
     assert not any((tmp_path / "folder").iterdir())
+    (tmp_path / "broken.xml").write_text("<mujoco><worldbody><body></mujoco>")
+    assert main(["render", str(tmp_path / "broken.xml"), "--out",
+                 str(tmp_path / "new" / "s.png")]) == 2  # no robot drawn
+    assert "no robot drawn" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()  # checked, not made
 
 
 def test_a_contact_sheet_needs_neither_torch_nor_pyg(tmp_path):
