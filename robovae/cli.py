@@ -58,10 +58,10 @@ def cmd_data(args: argparse.Namespace) -> int:
 
 def cmd_generate(args: argparse.Namespace) -> int:
     """Sample robots from a checkpoint, write MJCF, validate, print the sample report."""
-    from robovae import options  # before the heavy imports (robovae.options)
+    from robovae.options import check_generate, check_like  # before the heavy imports
 
     if args.like:
-        options.check_like(args.radius, args.n, args.redraws)
+        check_like(args.radius, args.n, args.redraws)
         from robovae.design.variations import generate_like
 
         report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
@@ -71,8 +71,8 @@ def cmd_generate(args: argparse.Namespace) -> int:
         print(report.format())
         print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
         return 0
-    options.check_generate(args.n, args.temperature, args.node_temperature, args.batch_size,
-                           args.jobs, args.redraws)
+    check_generate(args.n, args.temperature, args.node_temperature, args.batch_size, args.jobs,
+                   args.redraws)
     from robovae.generate.pipeline import generate
 
     report = generate(args.ckpt, args.n, args.out, seed=args.seed,

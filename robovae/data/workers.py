@@ -15,8 +15,10 @@ yet started is cancelled and the workers busy with the rest are ended (``SIGTERM
 Python 3.14's ``ProcessPoolExecutor.terminate_workers``). ``concurrent.futures`` would
 otherwise run every queued item first (``robovae gait`` on 30 robots: up to 45 minutes after
 the interrupt), and then the items already running, whose results nobody reads (a script's
-exit waits for them; in a notebook they hold the cores). Workers write their files atomically
-(:func:`robovae.files.atomic_write`), so an ended worker leaves no half-written file.
+exit waits for them; in a notebook they hold the cores). The files a worker leaves (robots,
+scenes, reports) are written atomically (:func:`robovae.files.atomic_write`), and its scratch
+files go with their folder (``robovae optimize``'s ``.work``), so an ended worker leaves no
+half-written file.
 
 A worker ends with its parent: killed (``SIGTERM``, ``SIGKILL``, a closed terminal), the
 parent runs no clean-up, and its workers would otherwise go on with the robots already sent
