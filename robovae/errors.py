@@ -10,7 +10,7 @@ dataset builder print ``str(err)`` and go on with the other files.
 
 from __future__ import annotations
 
-from pathlib import Path
+import os
 
 
 class RobovaeError(Exception):
@@ -34,8 +34,8 @@ class RobotFileError(RobovaeError):
         where: the element and/or line, when known.
     """
 
-    def __init__(self, path: str | Path, what: str, where: str | None = None) -> None:
-        self.path = str(path)
+    def __init__(self, path: str | os.PathLike[str], what: str, where: str | None = None) -> None:
+        self.path = os.fspath(path)
         self.what = " ".join(str(what).split())  # always one line
         self.where = " ".join(where.split()) if where else None
         super().__init__(self.line())

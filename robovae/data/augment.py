@@ -46,8 +46,8 @@ def run_seed(*keys: int) -> int:
     else ``torch.initial_seed()``; the seed is NumPy's ``SeedSequence`` of their absolute
     values, so different keys give independent streams.
     """
-    base = os.environ.get("PL_GLOBAL_SEED")
-    base = int(base) if base is not None and base.lstrip("-").isdigit() \
+    env = os.environ.get("PL_GLOBAL_SEED")
+    base = int(env) if env is not None and env.lstrip("-").isdigit() \
         else torch.initial_seed()
     entropy = [abs(int(k)) for k in (base, *keys)]
     return int(np.random.SeedSequence(entropy).generate_state(2, np.uint64)[0] >> 1)

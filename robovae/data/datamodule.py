@@ -119,22 +119,22 @@ class RobotDataModule(L.LightningDataModule):
     def feature_set(self) -> str:
         """The feature set in use (after synthetic sources forced theirs)."""
         return self.dataset.feature_set if self.dataset is not None else \
-            self.hparams.feature_set
+            self.hparams["feature_set"]
 
     def _split(self, names: list[str]) -> tuple[list[int], list[int], list[int]]:
         hp = self.hparams
-        if hp.val_names or hp.test_names or hp.train_names:
-            val, test = select_names(names, hp.val_names), select_names(names, hp.test_names)
+        if hp["val_names"] or hp["test_names"] or hp["train_names"]:
+            val, test = select_names(names, hp["val_names"]), select_names(names, hp["test_names"])
             held = set(val) | set(test)
-            train = (select_names(names, hp.train_names) if hp.train_names
+            train = (select_names(names, hp["train_names"]) if hp["train_names"]
                      else [i for i in range(len(names)) if i not in held])
         else:
-            g = torch.Generator().manual_seed(hp.seed)
+            g = torch.Generator().manual_seed(hp["seed"])
             perm = torch.randperm(len(names), generator=g).tolist()
-            n_test = round(hp.test_fraction * len(names))
-            n_val = round(hp.val_fraction * len(names))
+            n_test = round(hp["test_fraction"] * len(names))
+            n_val = round(hp["val_fraction"] * len(names))
             test, val, train = perm[:n_test], perm[n_test:n_test + n_val], perm[n_test + n_val:]
-        if hp.val_is_train or not val:
+        if hp["val_is_train"] or not val:
             val = list(train)
         return train, val, test
 
@@ -142,23 +142,23 @@ class RobotDataModule(L.LightningDataModule):
         """``predict`` of prior samples: no robot files are needed (the model brings its
         normaliser from the checkpoint)."""
         trainer = getattr(self, "trainer", None)
-        return (self.hparams.predict_samples > 0 and trainer is not None
+        return (self.hparams["predict_samples"] > 0 and trainer is not None
                 and trainer.state.fn == "predict")
 
     def prepare_data(self) -> None:
         """Build (or load from the cache) the dataset once, on rank 0."""
         if self._predicts_latents():
             return
-        RobotDataset(self.hparams.root, self.hparams.sources, self.hparams.feature_set)
+        RobotDataset(self.hparams["root"], self.hparams["sources"], self.hparams["feature_set"])
 
     def setup(self, stage: str | None = None) -> None:
         """Load the dataset, split it into train/val/test and fit the normaliser on train."""
         hp = self.hparams
-        if stage == "predict" and hp.predict_samples > 0:
+        if stage == "predict" and hp["predict_samples"] > 0:
             return  # latents only: the model brings its normaliser from the checkpoint
         if self.dataset is not None:
             return
-        self.dataset = RobotDataset(hp.root, hp.sources, hp.feature_set, progress=False)
+        self.dataset = RobotDataset(hp["root"], hp["sources"], hp["feature_set"], progress=False)
         train, val, test = self._split(self.dataset.names)
         if not train:
             raise ValueError("robovae: the training split is empty")
@@ -172,10 +172,10 @@ class RobotDataModule(L.LightningDataModule):
     def train_augmentation(self) -> Augmentation | None:
         """The transforms of the training batches (``None`` when every knob is off)."""
         hp, fs = self.hparams, self.feature_set
-        surgery = TreeSurgery(fs, hp.tree_surgery, hp.surgery_ops, hp.surgery_max_nodes) \
-            if hp.tree_surgery > 0 else None
-        jitter = FeatureJitter(fs, hp.feature_shift, hp.feature_noise) \
-            if hp.feature_shift > 0 or hp.feature_noise > 0 else None
+        surgery = TreeSurgery(fs, hp["tree_surgery"], hp["surgery_ops"], hp["surgery_max_nodes"]) \
+            if hp["tree_surgery"] > 0 else None
+        jitter = FeatureJitter(fs, hp["feature_shift"], hp["feature_noise"]) \
+            if hp["feature_shift"] > 0 or hp["feature_noise"] > 0 else None
         return Augmentation(surgery, jitter) if surgery or jitter else None
 
     def transfer_batch_to_device(self, batch, device: torch.device, dataloader_idx: int):
@@ -201,27 +201,27 @@ class RobotDataModule(L.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         """Shuffled PyG loader over the training robots."""
-        return DataLoader(self.train_set, batch_size=self.hparams.batch_size, shuffle=True,
-                          num_workers=self.hparams.num_workers)
+        return DataLoader(self.train_set, batch_size=self.hparams["batch_size"], shuffle=True,
+                          num_workers=self.hparams["num_workers"])
 
     def val_dataloader(self) -> DataLoader:
         """Loader over the validation robots (the training robots when ``val_is_train``)."""
-        return DataLoader(self.val_set, batch_size=self.hparams.batch_size,
-                          num_workers=self.hparams.num_workers)
+        return DataLoader(self.val_set, batch_size=self.hparams["batch_size"],
+                          num_workers=self.hparams["num_workers"])
 
     def test_dataloader(self) -> DataLoader:
         """Loader over the test robots."""
-        return DataLoader(self.test_set, batch_size=self.hparams.batch_size,
-                          num_workers=self.hparams.num_workers)
+        return DataLoader(self.test_set, batch_size=self.hparams["batch_size"],
+                          num_workers=self.hparams["num_workers"])
 
 
     def predict_dataloader(self) -> DataLoader | TorchDataLoader:
         """Loader over the latent requests of ``robovae predict``."""
         hp = self.hparams
-        if hp.predict_samples <= 0:
+        if hp["predict_samples"] <= 0:
             return self.test_dataloader()
         skip = self.predict_skip() if callable(self.predict_skip) else self.predict_skip
-        self.predict_set = LatentIndices(hp.predict_samples, hp.predict_seed,
-                                         hp.predict_temperature, skip=skip,
-                                         redraws=hp.predict_redraws)
-        return TorchDataLoader(self.predict_set, batch_size=max(hp.batch_size, 1))
+        self.predict_set = LatentIndices(hp["predict_samples"], hp["predict_seed"],
+                                         hp["predict_temperature"], skip=skip,
+                                         redraws=hp["predict_redraws"])
+        return TorchDataLoader(self.predict_set, batch_size=max(hp["batch_size"], 1))

@@ -18,7 +18,7 @@ from functools import cache
 from pathlib import Path
 
 import torch
-from torch_geometric.data import InMemoryDataset
+from torch_geometric.data import Data, InMemoryDataset
 
 import robovae
 from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
@@ -184,7 +184,7 @@ class RobotDataset(InMemoryDataset):
             if os.path.exists(tmp):
                 os.unlink(tmp)
 
-    def load(self, path: str, data_cls: type = RobotData) -> None:
+    def load(self, path: str, data_cls: type[Data] = RobotData) -> None:
         """Load the processed cache memory-mapped (``torch.load(mmap=True)``): the collated
         tensors stay in the page cache, read on demand and shared by every process that maps
         the file (the DDP training processes hold one copy of the dataset between them)."""
@@ -221,7 +221,8 @@ class RobotDataset(InMemoryDataset):
         graphs += self._resolved.graphs
         for src in self._resolved.procedural:
             graphs += procedural_graphs(src, self.feature_set, self.jobs, self.progress)
-        kept, duplicates, seen, names = [], [], {}, set()
+        kept, duplicates, names = [], [], set()
+        seen: dict[str, str] = {}  # graph_key -> name of the robot kept
         for g in graphs:
             key = graph_key(g)
             if key in seen:

@@ -155,9 +155,11 @@ class FeatureSet:
 
     def mask(self, node_type: Tensor) -> Tensor:
         """Per-node column mask ``[N, dim]`` for a vector of node type ids."""
-        if self._torch_mask is None:
-            object.__setattr__(self, "_torch_mask", self.type_mask())
-        return self._torch_mask[node_type]
+        mask = self._torch_mask
+        if mask is None:
+            mask = self.type_mask()
+            object.__setattr__(self, "_torch_mask", mask)
+        return mask[node_type]
 
     def column_attr(self, attr: str) -> Tensor:
         """A per-column tensor of a :class:`Feature` attribute (``low``, ``high``, ``eps``)."""

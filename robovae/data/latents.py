@@ -20,8 +20,8 @@ class LatentIndices(Dataset):
 
     def __init__(self, n: int, seed: int = 0, temperature: float = 1.0,
                  skip: Sequence[int] = (), redraws: int = 0) -> None:
-        skip = set(skip)
-        self.indices = [i for i in range(n) if i not in skip]
+        skipped = set(skip)
+        self.indices = [i for i in range(n) if i not in skipped]
         self.seed, self.temperature, self.redraws = seed, temperature, redraws
 
     def __len__(self) -> int:

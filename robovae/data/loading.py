@@ -16,6 +16,7 @@ written to ``MUJOCO_LOG.TXT``), are returned as warnings.
 from __future__ import annotations
 
 import contextlib
+import os
 import re
 import warnings as pywarnings
 from collections.abc import Iterator
@@ -221,7 +222,7 @@ def _load(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel, list[str], list[st
     return spec, model, missing, warnings, mj_warnings
 
 
-def load_robot(path: str | Path) -> LoadedRobot:
+def load_robot(path: str | os.PathLike) -> LoadedRobot:
     """Parse and compile an MJCF or URDF file, dropping assets whose files are missing.
 
     Raises:

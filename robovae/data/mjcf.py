@@ -25,7 +25,7 @@ link: no real robot has them — check the units).
 
 from __future__ import annotations
 
-from pathlib import Path
+import os
 
 import mujoco
 import numpy as np
@@ -236,13 +236,13 @@ def _outside(fs: FeatureSet, x: np.ndarray, t: np.ndarray) -> bool:
     """Whether any non-categorical value lies outside its registry range (1e-6 relative
     tolerance): the quick test before :func:`_check_values` names the features."""
     if id(fs) not in _BOUNDS:
-        col_type, low, high = [], [], []
+        col_types, lows, highs = [], [], []
         for f in fs.features:
             ti = fs.node_types.index(f.node_type) if f.transform != "categorical" else -1
-            col_type += [ti] * f.width
-            low += [f.low - 1e-6 * max(1.0, abs(f.low))] * f.width
-            high += [f.high + 1e-6 * max(1.0, abs(f.high))] * f.width
-        _BOUNDS[id(fs)] = (fs, np.array(col_type), np.array(low), np.array(high))
+            col_types += [ti] * f.width
+            lows += [f.low - 1e-6 * max(1.0, abs(f.low))] * f.width
+            highs += [f.high + 1e-6 * max(1.0, abs(f.high))] * f.width
+        _BOUNDS[id(fs)] = (fs, np.array(col_types), np.array(lows), np.array(highs))
     _, col_type, low, high = _BOUNDS[id(fs)]
     for ti in np.unique(t).tolist():
         cols = col_type == ti
@@ -335,7 +335,7 @@ def model_to_graph(
                      mj_id=torch.tensor(ids, dtype=torch.long), warnings="; ".join(warns))
 
 
-def mjcf_to_graph(path: str | Path, feature_set: str | FeatureSet = "paper34",
+def mjcf_to_graph(path: str | os.PathLike, feature_set: str | FeatureSet = "paper34",
                   name: str | None = None) -> RobotData:
     """Load an MJCF/URDF file and return its robot graph (see :func:`model_to_graph`).
 

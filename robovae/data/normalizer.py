@@ -31,6 +31,12 @@ class Normalizer(nn.Module):
     low: Tensor
     high: Tensor
     fitted: Tensor
+    # non-persistent buffers, rebuilt from the feature set
+    type_mask: Tensor
+    is_log: Tensor
+    is_cat: Tensor
+    eps: Tensor
+    min_std: Tensor
 
     def __init__(self, feature_set: str | FeatureSet) -> None:
         super().__init__()

@@ -16,9 +16,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import torch
+
+#: node indices or ids: a list, a NumPy array or a tensor (no torch import at run time)
+_IntVector: TypeAlias = "Sequence[int] | np.ndarray | torch.Tensor"
 
 __all__ = ["RobotTree", "TreeArrays", "children", "feature_values", "shared_nodes"]
 
@@ -117,8 +123,8 @@ def _paths(parent: Sequence[int]) -> list[tuple[int, ...]]:
     return out
 
 
-def shared_nodes(source: tuple[Sequence[int], Sequence[int]],
-                 target: tuple[Sequence[int], Sequence[int]]) -> np.ndarray:
+def shared_nodes(source: tuple[_IntVector, _IntVector],
+                 target: tuple[_IntVector, _IntVector]) -> np.ndarray:
     """For each node of the ``target`` tree, the node of the ``source`` tree it shares, or -1.
 
     Both trees are given as ``(parent, node_type)`` in pre-order (root ``-1``; lists, arrays

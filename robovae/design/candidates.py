@@ -51,10 +51,10 @@ def evaluate(item: tuple[TreeArrays | str, str, str, str, Sequence[int]]) -> dic
     (:class:`TreeArrays`, written by :func:`robovae.generate.writer.write_robot`) or MJCF text
     (written as it is). Returns :func:`scored`'s record; a candidate that cannot be written
     scores 0 (:func:`failed`)."""
-    robot, folder, fs_name, task, seeds = item
+    robot, folder_name, fs_name, task, seeds = item
     from robovae.generate.writer import write_robot
 
-    folder = Path(folder)
+    folder = Path(folder_name)
     try:
         if isinstance(robot, str):
             folder.mkdir(parents=True, exist_ok=True)

@@ -81,6 +81,7 @@ import shutil
 from collections.abc import Sequence
 from contextlib import nullcontext
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -105,6 +106,9 @@ from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, unfinished
 from robovae.model.vae import RoboVAE
 from robovae.options import check_optimize
+
+if TYPE_CHECKING:
+    from robovae.data.graph import RobotData
 
 __all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "optimize", "procedural_seed",
            "score_seeds"]
@@ -176,7 +180,7 @@ class _Run:
                          "writer": WRITER}
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
-        self.log = {"settings": self.settings, "budget": budget,
+        self.log: dict[str, Any] = {"settings": self.settings, "budget": budget,
                     "evaluations": {m: [] for m in METHODS}}
         self.pending: list[dict] = []  # evaluated part of the CMA-ES generation being asked
 
@@ -304,9 +308,9 @@ class _Run:
         ev = self.log["evaluations"]
         pop = self.cma.population_size
         left = {m: self.budget - len(ev[m]) for m in METHODS}
-        jobs: list[tuple[str, int, object]] = []
+        jobs: list[tuple[str, int, Any]] = []  # (method, index, latent or procedural seed)
         start = len(ev["cma"]) - len(self.pending)  # index of this generation's first
-        graphs: dict[int, object] = {}  # job -> decoded graph (latent methods)
+        graphs: dict[int, RobotData] = {}  # job -> decoded graph (latent methods)
         rejected: dict[int, int] = {}  # job -> unfinished CMA-ES candidates resampled
         draws: dict[int, int] = {}  # job -> prior draw kept
         if left["cma"] > 0:

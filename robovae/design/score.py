@@ -166,7 +166,8 @@ def walk_gait(path: str | os.PathLike, seed: int = 0, trials: int = 8, seconds: 
             "actuators": names if moves else [],
             "amplitude": [float(v) for v in g.amplitude] if moves else [],
             "phase": [float(v) for v in g.phase] if moves else [],
-            "offset": [float(v) for v in g.offset] if moves else []}
+            # offset None is 0 (a gait file without offsets reads as zeros)
+            "offset": [float(v) for v in g.offset] if moves and g.offset is not None else []}
 
 
 def stand_score(path: str | os.PathLike, seed: int = 0, seconds: float = 3.0) -> dict:
@@ -175,9 +176,10 @@ def stand_score(path: str | os.PathLike, seed: int = 0, seconds: float = 3.0) ->
 
     res = standing(path, seconds=seconds)
     ratio = res.min_height_ratio
-    ok = res.floating and not res.unstable and ratio is not None and math.isfinite(ratio)
-    return {"score": max(0.0, float(ratio)) if ok else 0.0, "stands": res.stands,
-            "floating": res.floating}
+    score = 0.0
+    if res.floating and not res.unstable and ratio is not None and math.isfinite(ratio):
+        score = max(0.0, float(ratio))
+    return {"score": score, "stands": res.stands, "floating": res.floating}
 
 
 def _deepest_body(model: mujoco.MjModel) -> int:

@@ -56,6 +56,7 @@ from collections.abc import Sequence
 from concurrent.futures import Executor
 from contextlib import nullcontext
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -278,11 +279,13 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         path = interpolate(model, ga, gb, steps=steps, out=tmp, validate=validate)
-        result = {"a": str(a), "b": str(b), "steps": [
-            {"t": round(s.t, 6), "path": str(s.path.relative_to(tmp)),
-             "valid": s.validation.valid if s.validation else None,
-             "reason": s.validation.reason if s.validation else None} for s in path]}
-        result["sheet"] = None
+        rows: list[dict[str, Any]] = []
+        for s in path:
+            assert s.path is not None  # written: interpolate was given a folder
+            rows.append({"t": round(s.t, 6), "path": str(s.path.relative_to(tmp)),
+                         "valid": s.validation.valid if s.validation else None,
+                         "reason": s.validation.reason if s.validation else None})
+        result: dict[str, Any] = {"a": str(a), "b": str(b), "steps": rows, "sheet": None}
         if sheet:
             drawn = [result["steps"][k] for k in sheet_steps(steps)]
             labels = [f"t = {s['t']:.2f}" + (f"  {s['reason']}" if s["reason"] else "")

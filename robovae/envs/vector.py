@@ -23,14 +23,18 @@ import functools
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from robovae.envs.walk import ROOT_DIM, Layout, WalkEnv
+from robovae.envs.walk import ROOT_DIM, Layout, WalkEnv, WalkKwargs
 from robovae.errors import RobovaeError
 from robovae.files import robot_files as files_in_folders
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack  # typing.Unpack needs Python 3.11
 
 __all__ = ["PadObsAction", "action_mask", "make_vector_env", "obs_mask", "pad_obs",
            "padded_layout", "robot_files"]
@@ -96,9 +100,10 @@ class PadObsAction(gymnasium.Wrapper):
 
     def __init__(self, env: gymnasium.Env, layout: Layout) -> None:
         super().__init__(env)
-        own: Layout = env.unwrapped.layout
+        walk = cast(WalkEnv, env.unwrapped)  # Env.unwrapped is typed as a plain Env
+        own: Layout = walk.layout
         if own.qpos > layout.qpos or own.qvel > layout.qvel or own.action > layout.action:
-            raise RobovaeError(f"robovae: {env.unwrapped.robot_path}: robot {own} does not fit "
+            raise RobovaeError(f"robovae: {walk.robot_path}: robot {own} does not fit "
                                f"the padded layout {layout}")
         self.own, self.padded = own, layout
         self.observation_space = spaces.Box(-np.inf, np.inf, (layout.obs,), np.float64)
@@ -125,7 +130,7 @@ def _make(robot: str, layout: Layout, kwargs: dict) -> gymnasium.Env:
 
 def make_vector_env(robots: str | os.PathLike | Sequence[str | os.PathLike],
                     asynchronous: bool = True, context: str | None = "spawn",
-                    **env_kwargs: object) -> gymnasium.vector.VectorEnv:
+                    **env_kwargs: Unpack[WalkKwargs]) -> gymnasium.vector.VectorEnv:
     """A vector environment with one ``robovae/Walk-v0`` per robot (module docstring).
 
     Args:
@@ -151,11 +156,15 @@ def make_vector_env(robots: str | os.PathLike | Sequence[str | os.PathLike],
         env.close()
     layout = padded_layout(layouts)
     fns = [functools.partial(_make, str(f), layout, dict(env_kwargs)) for f in files]
+    venv: gymnasium.vector.VectorEnv
     if asynchronous:
         venv = gymnasium.vector.AsyncVectorEnv(fns, context=context)
     else:
         venv = gymnasium.vector.SyncVectorEnv(fns)
-    venv.robots, venv.layouts = files, layouts
-    venv.obs_mask = np.stack([obs_mask(own, layout) for own in layouts])
-    venv.action_mask = np.stack([action_mask(own, layout) for own in layouts])
+    # extra attributes (module docstring), which VectorEnv does not declare
+    extras = {"robots": files, "layouts": layouts,
+              "obs_mask": np.stack([obs_mask(own, layout) for own in layouts]),
+              "action_mask": np.stack([action_mask(own, layout) for own in layouts])}
+    for name, value in extras.items():
+        setattr(venv, name, value)
     return venv

@@ -70,6 +70,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypedDict
 
 import mujoco
 import numpy as np
@@ -83,7 +84,7 @@ from robovae.evaluate.quality.locomotion import actuated_base
 from robovae.evaluate.quality.stage import rest_pose
 from robovae.evaluate.scene import add_floor, has_floor
 
-__all__ = ["ROOT_DIM", "Layout", "WalkEnv", "walk_scene"]
+__all__ = ["ROOT_DIM", "Layout", "WalkEnv", "WalkKwargs", "walk_scene"]
 
 #: Size of the root-state block of the observation.
 ROOT_DIM = 10
@@ -135,7 +136,8 @@ def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
 
 def _joint_indices(model: mujoco.MjModel, root: int) -> tuple[np.ndarray, np.ndarray]:
     """``qpos`` / ``qvel`` indices of the observed joints (module docstring)."""
-    qpos, qvel = [], []
+    qpos: list[int] = []
+    qvel: list[int] = []
     for j in range(model.njnt):
         jtype = int(model.jnt_type[j])
         if jtype == _FREE or (jtype == _SLIDE and model.jnt_bodyid[j] == root):
@@ -213,6 +215,23 @@ def _floor_below(model: mujoco.MjModel, lowest: float) -> float:
          if model.geom_bodyid[g] == 0 and model.geom_type[g] == plane
          and data.geom_xmat[g, 8] > 0.99 and data.geom_xpos[g, 2] <= lowest + 1e-3]
     return max(z) if z else lowest
+
+
+class WalkKwargs(TypedDict, total=False):
+    """The keyword arguments of :class:`WalkEnv` after ``robot`` (all optional)."""
+
+    frame_skip: int
+    forward_reward_weight: float
+    healthy_reward: float
+    ctrl_cost_weight: float
+    min_height_ratio: float
+    max_tilt: float
+    terminate_when_unhealthy: bool
+    reset_noise_scale: float
+    free_base: bool
+    render_mode: str | None
+    width: int
+    height: int
 
 
 class WalkEnv(MujocoEnv):
@@ -349,7 +368,10 @@ class WalkEnv(MujocoEnv):
                    and height >= self.min_height_ratio * self._init_height)
         return healthy, height, up
 
-    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+    # MujocoEnv.step's annotation (float64 reward, float64-only info) is narrower than the
+    # gymnasium.Env.step contract (SupportsFloat reward, dict[str, Any] info) this follows
+    def step(  # type: ignore[override]
+            self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """One step of ``dt`` seconds (module docstring for the reward and termination)."""
         a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         root = self.scene.root

@@ -241,11 +241,11 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
                     "latent_dim": int(model.hparams.latent_dim)}
     # the robots measured: the first `behaviour` with a source, procedural ones written from
     # their seeds (source_file)
-    sources = [getattr(g, "source", None) for g in train]
-    with_source = [i for i, src in enumerate(sources) if src][: max(behaviour, 0)]
+    train_sources = [getattr(g, "source", None) for g in train]
+    with_source = [(i, src) for i, src in enumerate(train_sources) if src][: max(behaviour, 0)]
     train_files: list[str | None] = [None] * len(train)
-    for i in with_source:
-        train_files[i] = source_file(sources[i], root)
+    for i, src in with_source:
+        train_files[i] = source_file(src, root)
     # the k-NN entropy of the larger population also on subsets of the smaller one's size
     result["training"] = {"what": what, **_population(
         model, train, train_files, behaviour, jobs, entropy_kw=entropy_kw,
@@ -255,6 +255,7 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         sample_paths = [g.source for g in graphs]
         pop = _population(model, graphs, sample_paths, behaviour, jobs,
                           match=len(train), entropy_kw=entropy_kw)
+        assert samples is not None  # graphs are only loaded from samples
         manifest = _manifest_counts(Path(samples))
         result["samples"] = {"what": f"{len(graphs)} valid robots of {samples}"
                              + (f" ({manifest['total']} generated)" if manifest else ""),
@@ -264,11 +265,12 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     if quality > 0:
         corpus = corpus_files([getattr(g, "source", None) for g in train],
                               [g.name for g in train], quality, root)
-        groups = {"samples": (sample_paths[:quality], None),
-                  "training corpus": corpus,
-                  "procedural": (procedural_files(min(procedural, quality), root,
-                                                  HOLDOUT_SEED + seed), None),
-                  "real robots": (real_robot_files(real)[:quality], None)}
+        groups: dict[str, tuple[Sequence[str | Path], Sequence[str] | None]] = {
+            "samples": (sample_paths[:quality], None),
+            "training corpus": corpus,
+            "procedural": (procedural_files(min(procedural, quality), root,
+                                            HOLDOUT_SEED + seed), None),
+            "real robots": (real_robot_files(real)[:quality], None)}
         workers = jobs or 2
         # one pool for the four populations: a worker spends seconds on its imports
         with process_pool(workers) if workers > 1 else nullcontext() as pool:
@@ -342,12 +344,14 @@ def format_report(result: dict) -> str:
     for n in DESCRIPTORS:
         row = {"descriptor": n, "training": _ms(tr["summary"][n])}
         if sa:
+            assert cmp_ is not None  # analyze writes "comparison" with "samples"
             row["samples"] = _ms(sa["summary"][n])
             row["KL(train||samples)"] = _f(cmp_["kl"][n], "{:.3f}")
         rows.append(row)
     cols = ["descriptor", "training"] + (["samples", "KL(train||samples)"] if sa else [])
     lines += ["", format_table(rows, cols)]
     if sa:
+        assert cmp_ is not None  # analyze writes "comparison" with "samples"
         m, c = cmp_["mmd"], cmp_["coverage"]
         lines += ["", f"KL summed over descriptors {_f(cmp_['kl_total'], '{:.3f}')} nats; "
                   f"MMD² {_f(m['mmd2'], '{:.4f}')} (RBF, bandwidth {_f(m['bandwidth'])}, "

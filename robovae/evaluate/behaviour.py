@@ -34,6 +34,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
+from typing import TypeAlias
 
 import mujoco
 import numpy as np
@@ -45,7 +46,7 @@ from robovae.evaluate.quality.stage import MOVING, prepare
 from robovae.evaluate.quality.stage import unstable as is_unstable
 from robovae.evaluate.quality.standing import standing
 
-Robot = str | os.PathLike | mujoco.MjSpec
+Robot: TypeAlias = str | os.PathLike | mujoco.MjSpec
 
 
 def state_entropy(robot: Robot, seconds: float = 3.0, rollouts: int = 8, hold: float = 0.05,

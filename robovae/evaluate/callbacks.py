@@ -113,8 +113,10 @@ class ReconstructionMetrics(L.Callback):
         last = trainer.max_epochs is not None and epoch >= trainer.max_epochs
         if epoch % self.every_n_epochs and not last:
             return
-        self._log(pl_module, "val", trainer.datamodule.val_set)
+        # Lightning sets Trainer.datamodule at run time without declaring it on the class
+        self._log(pl_module, "val", trainer.datamodule.val_set)  # type: ignore[attr-defined]
 
     def on_test_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
         """Decode the test robots and log the ``test/*`` metrics (also per robot)."""
-        self._log(pl_module, "test", trainer.datamodule.test_set)
+        # Lightning sets Trainer.datamodule at run time without declaring it on the class
+        self._log(pl_module, "test", trainer.datamodule.test_set)  # type: ignore[attr-defined]

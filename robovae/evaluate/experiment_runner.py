@@ -138,8 +138,10 @@ def run_one(spec: RunSpec) -> dict:
     load0, t0 = _loadavg(), time.perf_counter()
     cli = run_lightning_cli(argv)
     command_s = time.perf_counter() - t0
-    # (by name: under ``python -m`` this module is ``__main__``, the callback's class is not)
-    timer = next(c for c in cli.trainer.callbacks if type(c).__name__ == "FitTimer")
+    # (by name: under ``python -m`` this module is ``__main__``, the callback's class is not;
+    # Lightning sets Trainer.callbacks at run time without declaring it on the class)
+    timer = next(c for c in cli.trainer.callbacks  # type: ignore[attr-defined]
+                 if type(c).__name__ == "FitTimer")
     model, dm = cli.model.eval(), cli.datamodule
     results = score_split(model, dm.test_set)
     summary = summarize(results)

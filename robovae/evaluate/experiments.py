@@ -110,8 +110,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         report(root=root)
         return 0
     if args.cmd == "zeroshot":
-        r = zeroshot(args.ckpt, args.name, args.menagerie, root)
-        s = r["summary_z"]
+        res = zeroshot(args.ckpt, args.name, args.menagerie, root)
+        s = res["summary_z"]
         print(f"[zeroshot/{args.name}] from z: RA {s['ra']:.4f} RA_true {s['ra_true']:.4f} "
               f"exact {s['exact']:.3f} FRE {s['fre']:.3g}")
         return 0
@@ -144,12 +144,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             specs += experiment_specs(name, args.seeds, **ex)
         specs += loo_specs(args.seeds, **ex)
         if not args.skip_ablation:  # every seed at 2 and 4 robots, the first for the LOO
-            for v, (_, ov) in ABLATIONS.items():
+            for v, (_, flags) in ABLATIONS.items():
                 if v == "default":
                     continue
                 for exp in ("menagerie2", "menagerie4"):
-                    specs += experiment_specs(exp, args.seeds, v, list(ov), **ex)
-                specs += loo_specs(args.seeds[:1], variant=v, extra=list(ov), **ex)
+                    specs += experiment_specs(exp, args.seeds, v, list(flags), **ex)
+                specs += loo_specs(args.seeds[:1], variant=v, extra=list(flags), **ex)
         run_all(specs, args.jobs, redo)
         report(root=root)
     return 0

@@ -320,7 +320,7 @@ def gaussian_entropy(cov: np.ndarray) -> float:
     return float(0.5 * (d * math.log(2 * math.pi * math.e) + logdet))
 
 
-def participation_ratio(eigenvalues: Sequence[float]) -> float:
+def participation_ratio(eigenvalues: Sequence[float] | np.ndarray) -> float:
     """``(Σλ)² / Σλ²``: the effective number of dimensions of a spectrum."""
     lam = np.clip(np.asarray(eigenvalues, float), 0.0, None)
     s2 = float((lam ** 2).sum())

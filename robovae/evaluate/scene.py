@@ -25,6 +25,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeAlias
 
 import mujoco
 import numpy as np
@@ -36,7 +37,7 @@ from robovae.evaluate.quality.stage import rest_key, rest_pose
 __all__ = ["Prepared", "Robot", "add_floor", "has_floor", "inject_floor", "inject_skeleton",
            "model_name", "prepare", "scene_option", "settle"]
 
-Robot = str | os.PathLike | mujoco.MjModel | mujoco.MjSpec
+Robot: TypeAlias = str | os.PathLike | mujoco.MjModel | mujoco.MjSpec
 """Anything the renderer accepts: a robot file, a compiled model or a spec."""
 
 _PREFIX = "robovae_"

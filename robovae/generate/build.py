@@ -9,6 +9,8 @@ with torch and PyG).
 
 from __future__ import annotations
 
+from typing import Any
+
 from robovae.evaluate.quality.measure import robot_quality
 from robovae.evaluate.quality.stage import stage_compiled
 from robovae.generate.validate import check_robot
@@ -45,7 +47,7 @@ def build_robot(item: tuple) -> dict:
     except Exception as e:  # the rules make every graph writable; never lose a whole batch
         return {"rules": [], "counts": {}, "valid": False, "reason": "compile",
                 "detail": f"writer error: {' '.join(str(e).split())}"}
-    rec = {"rules": res.rules, "counts": res.counts}
+    rec: dict[str, Any] = {"rules": res.rules, "counts": res.counts}
     if validate:
         checked = check_robot(res.robot_path, controls=controls)
         v = checked.validation

@@ -18,20 +18,34 @@ PyG graph is made again once, at the end, when one of them changed it.
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
 import torch
 
 from robovae.data.features import FeatureSet
 from robovae.data.graph import RobotData, tree_data
-from robovae.data.tree_arrays import RobotTree, TreeArrays
+from robovae.data.tree_arrays import TreeArrays
 from robovae.generate.rules import floating_base, slide_limited
 from robovae.generate.symmetry import complete_pairs, mirror_limbs
 
 __all__ = ["decoded_fixes"]
 
 
-def decoded_fixes(graph: RobotTree, feature_set: str | FeatureSet, floating: bool = True,
-                  mirror: bool = True) -> tuple[RobotTree, list[str]]:
+# RobotData first: a class of untyped PyG, mypy would match it to any overload
+@overload
+def decoded_fixes(graph: RobotData, feature_set: str | FeatureSet, floating: bool = True,
+                  mirror: bool = True) -> tuple[RobotData, list[str]]: ...
+
+
+@overload
+def decoded_fixes(graph: TreeArrays, feature_set: str | FeatureSet, floating: bool = True,
+                  mirror: bool = True) -> tuple[TreeArrays, list[str]]: ...
+
+
+def decoded_fixes(graph: TreeArrays | RobotData, feature_set: str | FeatureSet,
+                  floating: bool = True, mirror: bool = True
+                  ) -> tuple[TreeArrays | RobotData, list[str]]:
     """The graph as ``robovae generate`` writes it (module docstring), of ``graph``'s kind (a
     PyG graph or :class:`~robovae.data.tree_arrays.TreeArrays`), and the names of the fixes
     that changed it, in order; ``graph`` itself is not modified (it is returned when no fix
@@ -42,7 +56,8 @@ def decoded_fixes(graph: RobotTree, feature_set: str | FeatureSet, floating: boo
         + [("slide_limited", slide_limited)]
     start = arrays = TreeArrays.of(graph)
     for name, fix in steps:
-        arrays, changed = fix(arrays, feature_set)
+        fixed, changed = fix(arrays, feature_set)
+        arrays = TreeArrays.of(fixed)  # the same object: the fixes keep their input's kind
         fixes += [name] if changed else []
     if not fixes:
         return graph, fixes

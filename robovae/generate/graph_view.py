@@ -15,11 +15,15 @@ safe side.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from robovae.data.features import Feature, FeatureSet, get_feature_set
 from robovae.data.tree_arrays import RobotTree, TreeArrays, children, feature_values
+
+if TYPE_CHECKING:
+    from robovae.data.graph import RobotData
 
 __all__ = ["GraphView", "as_feature_set", "ceil32", "floor32", "node_mask", "norm"]
 
@@ -87,7 +91,7 @@ class GraphView:
             return data.with_x(x)
         import torch  # a PyG graph: torch is loaded already
 
-        out = data.clone()
+        out = cast("RobotData", data).clone()
         out.x = torch.from_numpy(x)
         return out
 

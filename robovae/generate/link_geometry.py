@@ -176,6 +176,7 @@ def _box_primitive(center: np.ndarray, quat: np.ndarray, half: np.ndarray) -> Ge
 def _disc(f: LinkFrame) -> GeomPlan | None:
     """The cylinder of a link whose collision box is a disc spun by one of its hinges (module
     docstring), else None."""
+    assert f.box is not None  # called for a link whose box gave its fill
     center, quat, half = f.box
     order, a, b, e = _by_size(half)
     if a > 1.2 * b:
@@ -206,6 +207,7 @@ def _primitive(f: LinkFrame, fill: GeomPlan | None) -> GeomPlan:
         if prim.type == "box" and f.hinges:
             return _disc(f) or prim
         if prim.type == "capsule" and not f.root and not f.children:  # a sole stays flat
+            assert f.box is not None  # the fill is that of the box
             return _box_geom(*f.box)
         if prim.type == "capsule" and not f.root and f.children:  # a limb segment: joined
             u = f.children[0][0] - f.anchor

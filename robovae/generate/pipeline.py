@@ -27,12 +27,13 @@ import re
 import shutil
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
-from typing import TextIO
+from typing import Protocol, TextIO
 
 import torch
 
@@ -56,7 +57,15 @@ SUMMARY = "summary.json"
 RUN = "run.json"
 
 
-def model_fingerprint(model: RoboVAE) -> str:
+class HasStateDict(Protocol):
+    """A model's weights and buffers by name (a ``torch.nn.Module``, or a view of one)."""
+
+    def state_dict(self) -> Mapping[str, torch.Tensor]:
+        """Tensors by name."""
+        ...
+
+
+def model_fingerprint(model: HasStateDict) -> str:
     """SHA-256 of the model's weights and buffers (names, dtypes, values)."""
     h = hashlib.sha256()
     for name, t in sorted(model.state_dict().items()):
@@ -255,9 +264,9 @@ def generate(
                disable=not progress)
     jobs = jobs or (os.cpu_count() or 1)
     threads = torch.get_num_threads()
-    opts = {"seed": seed, "temperature": temperature, "validate": validate, "scene": scene,
-            "floating": floating, "mirror": mirror, "quality": quality, "controls": controls,
-            "stance": stance}
+    prepare = partial(prepare_records, seed=seed, temperature=temperature, validate=validate,
+                      scene=scene, floating=floating, mirror=mirror, quality=quality,
+                      controls=controls, stance=stance)
     try:
         if jobs > 1:
             torch.set_num_threads(1)  # the workers have the other cores
@@ -270,8 +279,7 @@ def generate(
             for chunk in _chunks(todo, batch_size):
                 z, graphs, draws = draw_robots(model, seed, chunk, temperature,
                                                node_temperature, redraws)
-                records, items = prepare_records(model, chunk, z, graphs, out, draws=draws,
-                                                 **opts)
+                records, items = prepare(model, chunk, z, graphs, out, draws=draws)
                 built = pool.map(build_robot, items, chunksize=4) if pool is not None \
                     else [build_robot(item) for item in items]
                 if queued is not None:  # collected only once the next batch is queued

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
@@ -29,9 +28,11 @@ import torch
 from lightning.pytorch.callbacks import BasePredictionWriter
 
 from robovae.data.latents import LatentIndices  # noqa: F401  (re-exported)
+from robovae.data.workers import WorkerPool
 from robovae.errors import RobovaeError
 from robovae.generate.pipeline import (
     RUN,
+    GenerationReport,
     append_records,
     claim,
     model_fingerprint,
@@ -43,6 +44,7 @@ from robovae.generate.pipeline import (
     write_records,
 )
 from robovae.generate.writer import WRITER
+from robovae.model.vae import RoboVAE
 
 
 class _Float32Weights:
@@ -55,6 +57,18 @@ class _Float32Weights:
     def state_dict(self) -> dict[str, torch.Tensor]:
         return {k: v.float() if v.is_floating_point() else v
                 for k, v in self.module.state_dict().items()}
+
+
+def _robovae(pl_module: L.LightningModule) -> RoboVAE:
+    """The module a :class:`RobotWriter` writes the robots of.
+
+    Raises:
+        TypeError: it is not a :class:`~robovae.model.vae.RoboVAE`.
+    """
+    if not isinstance(pl_module, RoboVAE):
+        raise TypeError(f"robovae: RobotWriter writes the robots of a RoboVAE, not of "
+                        f"{type(pl_module).__name__}")
+    return pl_module
 
 
 class RobotWriter(BasePredictionWriter):
@@ -72,15 +86,16 @@ class RobotWriter(BasePredictionWriter):
         super().__init__(write_interval="batch")
         self.out = Path(output_dir)
         self.validate, self.scene, self.jobs = validate, scene, jobs
-        self.report = None
-        self._pool: Executor | None = None
+        self.report: GenerationReport | None = None
+        self._pool: WorkerPool | None = None
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
         """Create the output folder and read the manifest of a run being resumed."""
         if stage != "predict":
             return
         self.out.mkdir(parents=True, exist_ok=True)
-        dm = trainer.datamodule
+        # Lightning sets Trainer.datamodule at run time without declaring it on the class
+        dm = trainer.datamodule  # type: ignore[attr-defined]
         if dm is not None and hasattr(dm, "predict_skip"):
             # asked for when the datamodule builds the predict set: the weights are restored
             # from the checkpoint by then (they are not yet during setup)
@@ -92,13 +107,14 @@ class RobotWriter(BasePredictionWriter):
         Rank 0 claims (``run.json``), then every rank checks ``run.json`` itself, so that all
         ranks stop together on a refusal; all ranks have read the manifests before any writes.
         """
-        hp = trainer.datamodule.hparams
-        run = {"model": model_fingerprint(_Float32Weights(pl_module)),
+        hp = trainer.datamodule.hparams  # type: ignore[attr-defined]  # as in setup
+        model = _robovae(pl_module)
+        run = {"model": model_fingerprint(_Float32Weights(model)),
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
-               "feature_set": pl_module.feature_set.name, "floating": True, "mirror": True,
-               "node_temperature": pl_module.hparams.get("node_temperature"),
+               "feature_set": model.feature_set.name, "floating": True, "mirror": True,
+               "node_temperature": model.hparams.get("node_temperature"),
                "redraws": int(hp.predict_redraws),
-               "prior": prior_name(pl_module), "stance": True, "writer": WRITER}
+               "prior": prior_name(model), "stance": True, "writer": WRITER}
         refused = None
         if trainer.is_global_zero:
             try:
@@ -124,7 +140,8 @@ class RobotWriter(BasePredictionWriter):
         jobs = self.jobs or max(1, (torch.get_num_threads() or 1) // trainer.world_size)
         if jobs > 1 and self._pool is None and len(prediction["graphs"]) >= 4:
             self._pool = worker_pool(jobs)  # one pool for the whole run, not one per batch
-        records = write_records(pl_module, prediction["index"].tolist(), prediction["z"],
+        records = write_records(_robovae(pl_module), prediction["index"].tolist(),
+                                prediction["z"],
                                 prediction["graphs"], self.out, seed=prediction["seed"],
                                 temperature=prediction["temperature"], validate=self.validate,
                                 jobs=jobs, scene=self.scene, pool=self._pool,
@@ -151,9 +168,10 @@ class RobotWriter(BasePredictionWriter):
         """On rank 0, summarise the manifests of all ranks and print the sample report."""
         trainer.strategy.barrier()
         if trainer.is_global_zero:
-            dm = trainer.datamodule
+            dm = trainer.datamodule  # type: ignore[attr-defined]  # as in setup
             n = dm.hparams.predict_samples
             new = len(dm.predict_set) if getattr(dm, "predict_set", None) is not None else 0
-            self.report = summarize(pl_module, self.out, n, new, self.validate, 0.0)
-            print(self.report.format())
+            report = summarize(_robovae(pl_module), self.out, n, new, self.validate, 0.0)
+            print(report.format())
+            self.report = report
         trainer.strategy.barrier()

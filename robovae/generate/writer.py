@@ -176,6 +176,7 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         legs = two_legs(model, kin, root, candidate_points(model, kin))
     dz = 0.0
     if placed:
+        assert clearance is not None  # placed says so
         dz = clearance - _lowest_point(model, kin)
         for body in builder.free_bodies:  # to_xml writes the spec's values: no recompile
             body.pos = [body.pos[0], body.pos[1], mjcf_round(body.pos[2] + dz)]

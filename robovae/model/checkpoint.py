@@ -13,6 +13,7 @@ it, and passes ``weights_only=True`` to the trainer (Lightning's own default, ``
 from __future__ import annotations
 
 import copy
+import os
 import re
 import zipfile
 from pathlib import Path
@@ -41,7 +42,7 @@ def refusal(path: str | Path | None, e: BaseException) -> RobovaeError:
     return RobovaeError(f"robovae:{where} refused to load checkpoint ({reason})")
 
 
-def read_checkpoint(path: str | Path) -> dict:
+def read_checkpoint(path: str | os.PathLike[str]) -> dict:
     """The contents of a checkpoint file, read with ``torch.load(weights_only=True)``.
 
     Raises:
@@ -112,7 +113,8 @@ def check_current_model(ckpt: dict, path: str | Path | None = None) -> None:
                            "current configs, e.g. `robovae fit --config configs/default.yaml`")
 
 
-def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> RoboVAE:
+def load_model(path: str | os.PathLike[str], map_location: str | torch.device = "cpu"
+               ) -> RoboVAE:
     """A :class:`RoboVAE` in eval mode from a Lightning checkpoint (``weights_only`` loading),
     also from a checkpoint of an earlier version whose model is the current one
     (:func:`current_hparams`).
@@ -136,7 +138,7 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> Ro
     return model.to(map_location).eval()
 
 
-def own_model(model: RoboVAE | str | Path) -> RoboVAE:
+def own_model(model: RoboVAE | str | os.PathLike[str]) -> RoboVAE:
     """A model the caller may change (e.g. turn into float64): a deep copy of a given
     :class:`RoboVAE`, never the object itself, or :func:`load_model` of a checkpoint path."""
     return copy.deepcopy(model) if isinstance(model, RoboVAE) else load_model(model)

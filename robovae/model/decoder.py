@@ -50,6 +50,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypedDict
 
 import torch
 import torch.nn.functional as F
@@ -164,6 +165,8 @@ class TreeDecoder(nn.Module):
             outside ``[1, latent_dim]``.
     """
 
+    type_mask: Tensor  # [num_types, d] bool buffer (register_buffer in __init__)
+
     def __init__(self, feat_dim: int, num_types: int, hidden_dim: int, latent_dim: int,
                  node_latent_dim: int, tree_latent_dim: int | None = None,
                  type_mask: Tensor | None = None,
@@ -249,7 +252,8 @@ class TreeDecoder(nn.Module):
         sched = tree_schedule(batch) if sched is None else sched
         if messages is None:
             px = self.project_levels(batch.node_type, z, sched)
-            messages = tuple(t[0] for t in level_messages([self.cell], px[None], sched, 0))
+            down_c, total_c, sdown_c = level_messages([self.cell], px[None], sched, 0)
+            messages = (down_c[0], total_c[0], sdown_c[0])
         down, total, sdown = messages
         node, count, target, which, graph = decision_index(sched)
         m = torch.cat([sdown, total]).index_select(0, which)
@@ -417,14 +421,21 @@ class _LatentHeads:
         return types, torch.where(dec.type_mask[types], feat, torch.zeros_like(feat))
 
 
+class _TensorKwargs(TypedDict):
+    """The ``dtype`` and ``device`` keyword arguments of a tensor factory."""
+
+    dtype: torch.dtype
+    device: torch.device
+
+
 class _NodeBuffer:
     """Growable flat storage of the nodes being decoded (all latents interleaved)."""
 
     def __init__(self, cap: int, d: int, hid: int, dtype: torch.dtype,
                  dev: torch.device) -> None:
         self.n = 0
-        long = {"dtype": torch.long, "device": dev}
-        flt = {"dtype": dtype, "device": dev}
+        long: _TensorKwargs = {"dtype": torch.long, "device": dev}
+        flt: _TensorKwargs = {"dtype": dtype, "device": dev}
         self.owner, self.parent = torch.zeros(cap, **long), torch.zeros(cap, **long)
         self.depth, self.type = torch.zeros(cap, **long), torch.zeros(cap, **long)
         self.nchild = torch.zeros(cap, **long)

@@ -122,8 +122,9 @@ def _heads(h: Tensor, mu: nn.Linear, logvar: nn.Linear) -> tuple[Tensor, Tensor]
     its batch. ``[B, H] x [H, z]``: free.
     """
     hd = h.double()
-    return tuple(F.linear(hd, head.weight.double(), head.bias.double()).to(h.dtype)
-                 for head in (mu, logvar))
+    mu_h, logvar_h = (F.linear(hd, head.weight.double(), head.bias.double()).to(h.dtype)
+                      for head in (mu, logvar))
+    return mu_h, logvar_h
 
 
 def encode_reference(encoder: TreeEncoder, data: Data) -> tuple[Tensor, Tensor]:

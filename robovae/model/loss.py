@@ -74,9 +74,9 @@ def vae_loss(out: DecoderOutput, batch: Data, mu: Tensor, logvar: Tensor,
     per_graph_loss = topo_g + feat_g + type_g + beta * kl_g
     kl_nodes_g = kl_g.new_zeros(b)
     if node_mu is not None:
-        if out.prior_mu is None or node_logvar is None:
-            raise ValueError("node latents need their posterior and the decoder's prior")
         pm, plv = out.prior_mu, out.prior_logvar
+        if pm is None or plv is None or node_logvar is None:
+            raise ValueError("node latents need their posterior and the decoder's prior")
         kl_n = 0.5 * (plv - node_logvar + (node_logvar.exp() + (node_mu - pm) ** 2)
                       * torch.exp(-plv) - 1.0).sum(1)
         kl_nodes_g = per_graph(kl_n, graph)

@@ -306,8 +306,11 @@ def level_messages_reference(cells: Sequence[TreeGRUCell], px: Tensor, sched: Tr
     outs = []
     for ci, cell in enumerate(cells):
         pxc, h = px[ci], cell.hidden_dim
-        up, gu = [None] * (depth + 1), [None] * (depth + 1)
-        s_up, g_up = [None] * (depth + 1), [None] * (depth + 1)
+        # per level: up messages and their gated form (levels >= 1), the children's sums
+        up: dict[int, Tensor] = {}
+        gu: dict[int, Tensor] = {}
+        s_up: dict[int, Tensor] = {}
+        g_up: dict[int, Tensor] = {}
         for lv in range(depth, -1, -1):
             s = g = pxc.new_zeros(sizes[lv], h)
             if lv < depth:
@@ -333,5 +336,6 @@ def level_messages_reference(cells: Sequence[TreeGRUCell], px: Tensor, sched: Tr
             sdown.append(s)
             down.append(cell.step(pxp, s, g))
         d = torch.cat(down)
-        outs.append((d, d + torch.cat(s_up), torch.cat(sdown)))
-    return tuple(torch.stack(t) for t in zip(*outs))  # type: ignore[return-value]
+        outs.append((d, d + torch.cat([s_up[lv] for lv in range(depth + 1)]), torch.cat(sdown)))
+    down_all, total_all, sdown_all = (torch.stack(t) for t in zip(*outs))
+    return down_all, total_all, sdown_all

@@ -84,8 +84,8 @@ def draw_robots(model: PriorModel, seed: int, indices: Sequence[int], temperatur
     first; ``k``: after ``k`` redraws of an unfinished tree, at most ``redraws``; the last draw
     is kept even if unfinished).
     """
-    z, eps = model.sample_prior(seed, indices, temperature, node_temperature)
-    eps = eps if noise else None
+    z, drawn = model.sample_prior(seed, indices, temperature, node_temperature)
+    eps = drawn if noise else None
 
     def redraw(rows: list[int], k: int) -> tuple[torch.Tensor, list[RobotData]]:
         zk = torch.stack([model.prior_latent(seed, int(indices[b]), temperature, draw=k)

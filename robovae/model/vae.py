@@ -102,6 +102,11 @@ class RoboVAE(PriorSampling, L.LightningModule):
             (:mod:`robovae.model.sampling`), training ignores it.
     """
 
+    # Lightning's ``dtype`` property (types it ``str | torch.dtype``: a string only after
+    # ``Module.type("...")``, never used on this model; ``.to()``/``.double()`` keep a
+    # ``torch.dtype``, which decoding and sampling need): declared, not defined here
+    dtype: torch.dtype
+
     def __init__(
         self,
         feature_set: str = "paper34",

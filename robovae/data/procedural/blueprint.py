@@ -45,7 +45,7 @@ class Geom:
     type: str
     mass: float
     radius: float = 0.0
-    fromto: tuple[float, ...] | None = None
+    fromto: tuple[float, float, float, float, float, float] | None = None
     pos: Vec | None = None
     half: Vec | None = None
 
@@ -173,8 +173,8 @@ def reroot(root: Part, target: Part) -> Part:
         a.joints = joints[i]
         b.children.append(a)
     for i in range(k):
-        a, n = new_origin[i], new_origin[i + 1]
-        path[i].pos = (a[0] - n[0], a[1] - n[1], a[2] - n[2])
+        o, n = new_origin[i], new_origin[i + 1]
+        path[i].pos = (o[0] - n[0], o[1] - n[1], o[2] - n[2])
     target.joints = []
     target.pos = (0.0, 0.0, 0.0)
     return target
@@ -182,6 +182,7 @@ def reroot(root: Part, target: Part) -> Part:
 
 def _low(g: Geom, o: Vec) -> float:
     if g.type in ("capsule", "cylinder"):
+        assert g.fromto is not None  # capsules and cylinders have fromto (see Geom)
         a, b = g.fromto[:3], g.fromto[3:]
         if g.type == "capsule":
             return o[2] + min(a[2], b[2]) - g.radius
@@ -189,8 +190,10 @@ def _low(g: Geom, o: Vec) -> float:
         n = math.sqrt(sum(x * x for x in d)) or 1.0
         rim = g.radius * math.sqrt(max(0.0, 1.0 - (d[2] / n) ** 2))
         return o[2] + min(a[2], b[2]) - rim
+    assert g.pos is not None  # spheres and boxes have pos (see Geom)
     if g.type == "sphere":
         return o[2] + g.pos[2] - g.radius
+    assert g.half is not None  # a box
     return o[2] + g.pos[2] - g.half[2]
 
 

@@ -163,9 +163,9 @@ def build_hand(s: Sampler, body: Part, prefix: str, tip: Vec, direction: Vec, ha
         gap = 0.6 * sum(f[0] for f in hand.fingers) / n
         order = list(range(1, n)) + [0] if hand.thumb_last else list(range(n))
         for k in order:  # k = 0 is the thumb, turned to the side
-            spread = (k - 0.5 * (n - 1)) * gap
+            offset = (k - 0.5 * (n - 1)) * gap
             d = direction if k else unit(add(direction, axis, 0.8))
-            chain(body, f"{prefix}f{k}_", add(tip, side, spread),
+            chain(body, f"{prefix}f{k}_", add(tip, side, offset),
                   [_finger_link(s, axis, d, ln, ((-0.2, -0.05), (0.8, 1.6)))
                    for ln in hand.fingers[k]])
 
@@ -219,7 +219,11 @@ def _reach(part: Part) -> float:
     far = 0.0
     for p, o in part.walk():
         for g in p.geoms:
-            pts = [g.fromto[:3], g.fromto[3:]] if g.fromto is not None else [g.pos]
+            if g.fromto is not None:
+                pts = [g.fromto[:3], g.fromto[3:]]
+            else:
+                assert g.pos is not None  # a sphere or a box (see Geom)
+                pts = [g.pos]
             for q in pts:
                 far = max(far, norm(add(o, q)) + g.radius)
     return far

@@ -11,7 +11,7 @@
 from __future__ import annotations
 
 import random
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import mujoco
@@ -41,7 +41,7 @@ def default_mix() -> dict[str, float]:
     return {k: v / total for k, v in mix.items()}
 
 
-def check_classes(classes: Mapping[str, float] | tuple[str, ...] | list[str]) -> dict[str, float]:
+def check_classes(classes: Mapping[str, float] | Sequence[str]) -> dict[str, float]:
     """A class mix as ``{class: weight}`` (a list gets equal weights).
 
     Raises:

@@ -10,6 +10,7 @@ every class uses (:meth:`Sampler.hinge`), with damping and armature from ``commo
 from __future__ import annotations
 
 import random
+from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
 
@@ -45,7 +46,7 @@ class Sampler:
         other.r = load_ranges()[kind]
         return other
 
-    def u(self, key: str | tuple[float, float], scale: float = 1.0) -> float:
+    def u(self, key: str | Sequence[float], scale: float = 1.0) -> float:
         """Uniform in the range ``key`` (a name or a pair), times ``scale``."""
         lo, hi = self.r[key] if isinstance(key, str) else key
         return (lo + (hi - lo) * self.rng.random()) * scale

@@ -45,9 +45,11 @@ def _fill(spec: mujoco.MjSpec, body, part: Part, conaff: int, actuators: bool) -
             body.add_geom(type=_GEOM[g.type], fromto=list(g.fromto), size=[g.radius, 0.0, 0.0],
                           mass=g.mass, conaffinity=conaff)
         elif g.type == "sphere":
+            assert g.pos is not None  # a sphere has pos (see Geom)
             body.add_geom(type=_GEOM["sphere"], pos=list(g.pos), size=[g.radius, 0.0, 0.0],
                           mass=g.mass, conaffinity=conaff)
         else:
+            assert g.pos is not None and g.half is not None  # a box has both (see Geom)
             body.add_geom(type=_GEOM["box"], pos=list(g.pos), size=list(g.half), mass=g.mass,
                           conaffinity=conaff)
 

@@ -36,31 +36,31 @@ def wasserstein_1d(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndar
     Raises:
         ValueError: a sample is empty (after dropping NaNs).
     """
-    a = np.sort(np.asarray(a, dtype=float).ravel())
-    b = np.sort(np.asarray(b, dtype=float).ravel())
-    a, b = a[~np.isnan(a)], b[~np.isnan(b)]
-    if not a.size or not b.size:
+    sa = np.sort(np.asarray(a, dtype=float).ravel())
+    sb = np.sort(np.asarray(b, dtype=float).ravel())
+    sa, sb = sa[~np.isnan(sa)], sb[~np.isnan(sb)]
+    if not sa.size or not sb.size:
         raise ValueError("wasserstein_1d: empty sample")
-    x = np.concatenate([a, b])
+    x = np.concatenate([sa, sb])
     x.sort()
-    fa = np.searchsorted(a, x[:-1], side="right") / a.size
-    fb = np.searchsorted(b, x[:-1], side="right") / b.size
+    fa = np.searchsorted(sa, x[:-1], side="right") / sa.size
+    fb = np.searchsorted(sb, x[:-1], side="right") / sb.size
     return float(np.sum(np.abs(fa - fb) * np.diff(x)))
 
 
 def split_half(x: Sequence[float] | np.ndarray, repeats: int = 20, seed: int = 0) -> float:
     """Mean W1 between two random halves of ``x`` over ``repeats`` splits (seeded); NaN below
     two values."""
-    x = np.asarray(x, dtype=float).ravel()
-    x = x[~np.isnan(x)]
-    if x.size < 2:
+    v = np.asarray(x, dtype=float).ravel()
+    v = v[~np.isnan(v)]
+    if v.size < 2:
         return float("nan")
     rng = np.random.default_rng(seed)
     out = []
     for _ in range(repeats):
-        p = rng.permutation(x.size)
-        h = x.size // 2
-        out.append(wasserstein_1d(x[p[:h]], x[p[h:]]))
+        p = rng.permutation(v.size)
+        h = v.size // 2
+        out.append(wasserstein_1d(v[p[:h]], v[p[h:]]))
     return float(np.mean(out))
 
 

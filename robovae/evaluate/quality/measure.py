@@ -76,7 +76,7 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
     (ignored when ``stand_kw`` changes the hold)."""
     compiled = isinstance(robot, (Stage, mujoco.MjModel))
     if name is None:
-        if compiled:
+        if isinstance(robot, (Stage, mujoco.MjModel)):  # compiled, spelled out to narrow robot
             name = ""
         elif isinstance(robot, mujoco.MjSpec):
             name = robot.modelname

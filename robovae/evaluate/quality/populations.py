@@ -104,9 +104,9 @@ def written_files(n: int, root: str | os.PathLike = "data_cache", seed: int = 0,
     for i, g in enumerate(graphs):
         folder = out / f"robot_{i:06d}"
         if not (folder / "robot.xml").is_file():
-            g = mirror_limbs(floating_base(g, "paper34")[0], "paper34")[0]
-            g = complete_pairs(g, "paper34")[0]
-            write_robot(g, folder, "paper34", name=f"written_{i:06d}", scene=False, check=False,
+            tree = mirror_limbs(floating_base(g, "paper34")[0], "paper34")[0]
+            tree = complete_pairs(tree, "paper34")[0]
+            write_robot(tree, folder, "paper34", name=f"written_{i:06d}", scene=False, check=False,
                         durable=False)
         paths.append(folder / "robot.xml")
     return paths

@@ -142,7 +142,9 @@ def quality_table(populations: Mapping[str, Sequence[dict]], corpus: str = "trai
             s = numbers[name]
             if key is None:
                 row[name] = f"{s['robots'] - s['errors']} ({s['errors']})"
-            elif key == "standing":
+                continue
+            assert fmt is not None  # only the row without a key has no format
+            if key == "standing":
                 row[name] = (f"{_fmt(s[key], fmt)} of {s['floating']}" if s["floating"]
                              else "-")
             else:

@@ -26,6 +26,7 @@ from __future__ import annotations
 import copy
 import os
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import mujoco
 import numpy as np
@@ -63,7 +64,7 @@ class Stage:
     data: mujoco.MjData  # model's, mj_forward at qpos0 (a measure that steps it restores it)
 
 
-Robot = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel | Stage
+Robot: TypeAlias = str | os.PathLike | mujoco.MjSpec | mujoco.MjModel | Stage
 
 
 def robot_points(model: mujoco.MjModel, data: mujoco.MjData, root: int) -> np.ndarray:

@@ -104,11 +104,11 @@ def hold_at_rest(model: mujoco.MjModel, extent: float, stiffness: float = 10.0,
     g = float(np.linalg.norm(model.opt.gravity)) or 9.81
     dt = model.opt.timestep
     servo: dict[int, int] = {}  # joint -> actuator
-    for a in range(model.nu):
-        j = int(model.actuator_trnid[a, 0])
-        if (model.actuator_trntype[a] == _TRN_JOINT and model.actuator_actnum[a] == 0
+    for u in range(model.nu):
+        j = int(model.actuator_trnid[u, 0])
+        if (model.actuator_trntype[u] == _TRN_JOINT and model.actuator_actnum[u] == 0
                 and model.jnt_type[j] in MOVING and j not in servo):
-            servo[j] = a
+            servo[j] = u
     model.actuator_gaintype[:] = _GAIN_FIXED  # every actuator off unless made a servo
     model.actuator_biastype[:] = _BIAS_NONE
     model.actuator_gainprm[:] = 0.0

@@ -133,10 +133,10 @@ def anatomy(robot: Robot, tolerance: float = 0.1) -> Anatomy:
             if sigs[j] != sigs[i] or not mirrored(lengths[i], lengths[j], masses[i], masses[j],
                                                   tolerance):
                 continue
-            c = (abs(lengths[i] - lengths[j]) / max(lengths[i], lengths[j], 1e-12)
+            d = (abs(lengths[i] - lengths[j]) / max(lengths[i], lengths[j], 1e-12)
                  + abs(masses[i] - masses[j]) / max(masses[i], masses[j], 1e-12))
-            if c < cost:
-                best, cost = j, c
+            if d < cost:
+                best, cost = j, d
         if best is not None:
             free.discard(best)
             pairs += 1
