@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fnmatch
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import lightning as L
 import torch
@@ -178,7 +179,8 @@ class RobotDataModule(L.LightningDataModule):
             if hp["feature_shift"] > 0 or hp["feature_noise"] > 0 else None
         return Augmentation(surgery, jitter) if surgery or jitter else None
 
-    def transfer_batch_to_device(self, batch, device: torch.device, dataloader_idx: int):
+    def transfer_batch_to_device(self, batch: Any, device: torch.device,
+                                 dataloader_idx: int) -> Any:
         """Robot batches move with PyG's own ``Batch.to`` (nothing to do when they are already
         there); Lightning's default walks every attribute of the batch (names, sources, ...)
         through ``apply_to_collection``, milliseconds per step on the CPU."""
@@ -186,7 +188,7 @@ class RobotDataModule(L.LightningDataModule):
             return batch if batch.x.device == device else batch.to(device)
         return super().transfer_batch_to_device(batch, device, dataloader_idx)
 
-    def on_after_batch_transfer(self, batch, dataloader_idx: int):
+    def on_after_batch_transfer(self, batch: Any, dataloader_idx: int) -> Any:
         """Augment a training batch (:attr:`augmentation`), seeded by ``(epoch, batch index,
         rank)`` of the trainer; other batches pass unchanged."""
         trainer = self.trainer

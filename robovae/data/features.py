@@ -24,6 +24,7 @@ from functools import cache
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
+import numpy.typing as npt
 
 if TYPE_CHECKING:  # torch is imported where a tensor is made: worker processes that only
     from torch import Tensor  # write and simulate robots never load it
@@ -149,7 +150,7 @@ class FeatureSet:
 
         return torch.from_numpy(self._type_mask.copy())
 
-    def mask_array(self, node_type) -> np.ndarray:
+    def mask_array(self, node_type: npt.ArrayLike) -> np.ndarray:
         """:meth:`mask` as a NumPy array, for node type ids in any sequence (no torch needed)."""
         return self._type_mask[np.asarray(node_type, dtype=np.int64)]
 

@@ -29,6 +29,7 @@ import os
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 import torch
 
 from robovae.data.actuators import joint_strength
@@ -167,7 +168,7 @@ def _fill(model: mujoco.MjModel, fs: FeatureSet, x: np.ndarray, types: np.ndarra
     keys = {f.key for f in fs.features}
     m = model
 
-    def put(rows: np.ndarray, key: str, values) -> None:
+    def put(rows: np.ndarray, key: str, values: npt.ArrayLike) -> None:
         if key in keys and rows.size:
             x[rows, fs.slice(key)] = np.asarray(values, dtype=np.float64).reshape(len(rows), -1)
 

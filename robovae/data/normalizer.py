@@ -7,6 +7,8 @@ transform of each column (``log`` for heavy tails, ``categorical`` left alone, `
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import torch
 from torch import Tensor, nn
 
@@ -75,7 +77,7 @@ class Normalizer(nn.Module):
         """
         d, n = x.shape[1], x.shape[0]
 
-        def chunks():
+        def chunks() -> Iterator[tuple[Tensor, Tensor]]:
             for a in range(0, n, chunk):
                 xs, ts = x[a:a + chunk], node_type[a:a + chunk]
                 if rows is not None:

@@ -31,6 +31,11 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context, parent_process
 from threading import Thread
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from multiprocessing.process import BaseProcess
+    from types import TracebackType
 
 
 class WorkerPool(ProcessPoolExecutor):
@@ -38,7 +43,8 @@ class WorkerPool(ProcessPoolExecutor):
     exception, cancels its queued work and ends its busy workers instead of waiting for them
     (:meth:`terminate`; module docstring)."""
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         if exc_type is None:
             self.shutdown(wait=True)
         else:
@@ -79,6 +85,6 @@ def exit_with_parent() -> None:
                daemon=True).start()
 
 
-def _end_after(parent) -> None:
+def _end_after(parent: BaseProcess) -> None:
     parent.join()
     os._exit(1)

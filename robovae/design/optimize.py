@@ -79,6 +79,7 @@ import math
 import os
 import shutil
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -286,7 +287,7 @@ class _Run:
         z = torch.as_tensor(np.stack(zs), dtype=torch.float64)
         return self.model.decode(z)
 
-    def prepare(self, method: str, payload) -> TreeArrays | str | dict:
+    def prepare(self, method: str, payload: int | RobotData) -> TreeArrays | str | dict:
         """What a worker writes for a candidate (:func:`robovae.design.candidates.evaluate`):
         a decoded graph with ``robovae generate``'s fixes (floating base for walk and stand,
         mirrored limbs) as :class:`TreeArrays`, a procedural robot's MJCF text; or, when that
@@ -298,12 +299,13 @@ class _Run:
                 return procedural_spec(payload).to_xml()
             from robovae.generate.fixes import decoded_fixes
 
+            assert not isinstance(payload, int)  # a latent method's decoded graph
             graph = decoded_fixes(payload, self.model.feature_set, floating=self.floating)[0]
             return TreeArrays.of(graph)
         except Exception as e:  # an unwritable candidate scores 0
             return failed(e)
 
-    def round(self, pool) -> int:
+    def round(self, pool: Executor | None) -> int:
         """One CMA-ES generation plus as many baseline robots; returns evaluations done."""
         ev = self.log["evaluations"]
         pop = self.cma.population_size

@@ -27,6 +27,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -160,7 +161,7 @@ def _score_seed(item: tuple[str, str, int, bool]) -> float | dict:
     return float(score_robot(path, task, seed=seed)["score"])
 
 
-def heldout(run: Run, pool) -> dict:
+def heldout(run: Run, pool: Executor | None) -> dict:
     """Score the robots of ``best/`` with :data:`HELDOUT_SEEDS` and, for walk, find their
     gaits (module docstring); store both in the log, write each ``gait.json``, and return the
     entries per method, best first."""

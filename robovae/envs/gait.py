@@ -26,12 +26,18 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import mujoco
 import numpy as np
 
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality.locomotion import FALL_SAMPLE_DT
+
+if TYPE_CHECKING:
+    import gymnasium
+
+    from robovae.envs.walk import WalkEnv
 
 __all__ = ["GaitReplay", "SinusoidGait", "replay"]
 
@@ -116,7 +122,8 @@ class GaitReplay:
         return float(self.reward.sum())
 
 
-def replay(env, gait: SinusoidGait, seconds: float, seed: int | None = None) -> GaitReplay:
+def replay(env: gymnasium.Env, gait: SinusoidGait, seconds: float, seed: int | None = None
+           ) -> GaitReplay:
     """Run ``gait`` in a :class:`~robovae.envs.walk.WalkEnv` (or a wrapper of one) for
     ``seconds`` of simulated time from ``env.reset(seed=seed)``, never ending early (an
     unhealthy step is recorded, not a reason to stop).
@@ -124,7 +131,7 @@ def replay(env, gait: SinusoidGait, seconds: float, seed: int | None = None) -> 
     Raises:
         RobovaeError: the gait's actuators do not match the environment's.
     """
-    walk = env.unwrapped
+    walk = cast("WalkEnv", env.unwrapped)  # Env.unwrapped is typed as a plain Env
     if len(gait.amplitude) != walk.model.nu:
         raise RobovaeError(f"robovae: {walk.robot_path}: the gait drives {len(gait.amplitude)} "
                            f"actuators, the robot has {walk.model.nu} (actuator)")

@@ -23,18 +23,15 @@ import functools
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import Any, SupportsFloat, cast
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from robovae.envs.walk import ROOT_DIM, Layout, WalkEnv, WalkKwargs
+from robovae.envs.walk import ROOT_DIM, Layout, WalkEnv
 from robovae.errors import RobovaeError
 from robovae.files import robot_files as files_in_folders
-
-if TYPE_CHECKING:
-    from typing_extensions import Unpack  # typing.Unpack needs Python 3.11
 
 __all__ = ["PadObsAction", "action_mask", "make_vector_env", "obs_mask", "pad_obs",
            "padded_layout", "robot_files"]
@@ -109,12 +106,14 @@ class PadObsAction(gymnasium.Wrapper):
         self.observation_space = spaces.Box(-np.inf, np.inf, (layout.obs,), np.float64)
         self.action_space = spaces.Box(-1.0, 1.0, (layout.action,), np.float32)
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset the robot's environment; the observation padded."""
         obs, info = self.env.reset(seed=seed, options=options)
         return pad_obs(obs, self.own, self.padded), info
 
-    def step(self, action):
+    def step(self, action: np.ndarray
+             ) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         """Step with the first ``nu`` entries of ``action``; the observation padded."""
         obs, reward, terminated, truncated, info = self.env.step(
             np.asarray(action)[:self.own.action])
@@ -130,7 +129,7 @@ def _make(robot: str, layout: Layout, kwargs: dict) -> gymnasium.Env:
 
 def make_vector_env(robots: str | os.PathLike | Sequence[str | os.PathLike],
                     asynchronous: bool = True, context: str | None = "spawn",
-                    **env_kwargs: Unpack[WalkKwargs]) -> gymnasium.vector.VectorEnv:
+                    **env_kwargs: Any) -> gymnasium.vector.VectorEnv:
     """A vector environment with one ``robovae/Walk-v0`` per robot (module docstring).
 
     Args:

@@ -70,7 +70,6 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypedDict
 
 import mujoco
 import numpy as np
@@ -84,7 +83,7 @@ from robovae.evaluate.quality.locomotion import actuated_base
 from robovae.evaluate.quality.stage import rest_pose
 from robovae.evaluate.scene import add_floor, has_floor
 
-__all__ = ["ROOT_DIM", "Layout", "WalkEnv", "WalkKwargs", "walk_scene"]
+__all__ = ["ROOT_DIM", "Layout", "WalkEnv", "walk_scene"]
 
 #: Size of the root-state block of the observation.
 ROOT_DIM = 10
@@ -215,23 +214,6 @@ def _floor_below(model: mujoco.MjModel, lowest: float) -> float:
          if model.geom_bodyid[g] == 0 and model.geom_type[g] == plane
          and data.geom_xmat[g, 8] > 0.99 and data.geom_xpos[g, 2] <= lowest + 1e-3]
     return max(z) if z else lowest
-
-
-class WalkKwargs(TypedDict, total=False):
-    """The keyword arguments of :class:`WalkEnv` after ``robot`` (all optional)."""
-
-    frame_skip: int
-    forward_reward_weight: float
-    healthy_reward: float
-    ctrl_cost_weight: float
-    min_height_ratio: float
-    max_tilt: float
-    terminate_when_unhealthy: bool
-    reset_noise_scale: float
-    free_base: bool
-    render_mode: str | None
-    width: int
-    height: int
 
 
 class WalkEnv(MujocoEnv):

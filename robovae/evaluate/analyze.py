@@ -300,7 +300,7 @@ def _manifest_counts(folder: Path) -> dict:
 # output
 
 
-def to_json(obj):
+def to_json(obj: object) -> object:
     """``obj`` with NaN/inf floats as ``None`` and numpy scalars as Python numbers."""
     if isinstance(obj, dict):
         return {str(k): to_json(v) for k, v in obj.items()}
@@ -322,7 +322,7 @@ def save_json(result: dict, path: str | Path) -> Path:
     return atomic_json(path, to_json(result), durable=False)
 
 
-def _f(v, fmt: str = "{:.3g}") -> str:
+def _f(v: float | None, fmt: str = "{:.3g}") -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
     if isinstance(v, bool):

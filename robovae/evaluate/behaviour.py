@@ -34,7 +34,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import TypeAlias
+from typing import Any, TypeAlias
 
 import mujoco
 import numpy as np
@@ -128,7 +128,7 @@ def state_entropy(robot: Robot, seconds: float = 3.0, rollouts: int = 8, hold: f
             "displacement": float(np.mean(disp)) if disp else math.nan, "unstable": unstable}
 
 
-def standing_test(robot: Robot, **kwargs) -> dict:
+def standing_test(robot: Robot, **kwargs: Any) -> dict:
     """:func:`~robovae.evaluate.quality.standing.standing` (keyword arguments passed on) as a
     dict; its ``seconds`` is called ``stand_seconds``."""
     out = asdict(standing(robot, **kwargs))

@@ -15,15 +15,20 @@ cost of the latents, ``<stage>/KL_z``, its tree part ``<stage>/KL_tree`` and
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from functools import partial
+from typing import TYPE_CHECKING, cast
 
 import lightning as L
-from torch_geometric.data import Batch
+from torch_geometric.data import Batch, Data
 
 from robovae.evaluate.metrics import Reconstruction, reconstruction_metrics, summarize
 
+if TYPE_CHECKING:
+    from robovae.model.vae import RoboVAE
 
-def score_split(pl_module, robots, batch_size: int = 64,
+
+def score_split(pl_module: RoboVAE, robots: Iterable[Data], batch_size: int = 64,
                 from_z: bool = False) -> list[Reconstruction]:
     """Reconstruct ``robots`` (a dataset or list of ``Data``) and score each one; ``from_z``:
     from the robot latent alone (:meth:`RoboVAE.reconstruct
@@ -38,7 +43,8 @@ def score_split(pl_module, robots, batch_size: int = 64,
     return results
 
 
-def latent_costs(pl_module, robots, batch_size: int = 64) -> list[dict[str, float]]:
+def latent_costs(pl_module: RoboVAE, robots: Iterable[Data],
+                 batch_size: int = 64) -> list[dict[str, float]]:
     """Per robot: ``kl_z``, ``kl_tree``, ``kl_nodes`` (nats per robot) and ``nelbo_per_node``
     (nats) of :meth:`RoboVAE.latent_costs <robovae.model.vae.RoboVAE.latent_costs>`, and
     ``nodes``."""
@@ -50,7 +56,7 @@ def latent_costs(pl_module, robots, batch_size: int = 64) -> list[dict[str, floa
     return out
 
 
-def split_metrics_from_z(pl_module, robots) -> dict[str, float]:
+def split_metrics_from_z(pl_module: RoboVAE, robots: Sequence[Data]) -> dict[str, float]:
     """The from-z part of :func:`split_metrics` (``RA_z`` ... ``FRE_z``, ``KL_z``, ``KL_tree``,
     ``KL_nodes``, ``NELBO_node``)."""
     names = {"ra": "RA_z", "ra_true": "RA_true_z", "exact": "exact_z", "fre": "FRE_z"}
@@ -82,7 +88,9 @@ class ReconstructionMetrics(L.Callback):
         self.max_per_robot = max_per_robot
         self.last: dict[str, list[Reconstruction]] = {}
 
-    def _log(self, pl_module, stage: str, robots) -> None:
+    def _log(self, module: L.LightningModule, stage: str, robots: Sequence[Data]) -> None:
+        # Lightning passes the hooks a LightningModule: this callback scores a RoboVAE
+        pl_module = cast("RoboVAE", module)
         results = score_split(pl_module, robots)
         self.last[stage] = results
         summary = summarize(results)
@@ -104,7 +112,8 @@ class ReconstructionMetrics(L.Callback):
                 if not math.isnan(r.fre):
                     log(f"{stage}/FRE/{r.name}", r.fre, batch_size=1)
 
-    def on_validation_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
+    def on_validation_epoch_end(self, trainer: L.Trainer,
+                                pl_module: L.LightningModule) -> None:
         """Every ``every_n_epochs`` (and at the last epoch): decode the validation robots and
         log ``val/RA``, ``val/RA_true``, ``val/exact``, ``val/FRE``."""
         if trainer.sanity_checking:
@@ -116,7 +125,7 @@ class ReconstructionMetrics(L.Callback):
         # Lightning sets Trainer.datamodule at run time without declaring it on the class
         self._log(pl_module, "val", trainer.datamodule.val_set)  # type: ignore[attr-defined]
 
-    def on_test_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
+    def on_test_epoch_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
         """Decode the test robots and log the ``test/*`` metrics (also per robot)."""
         # Lightning sets Trainer.datamodule at run time without declaring it on the class
         self._log(pl_module, "test", trainer.datamodule.test_set)  # type: ignore[attr-defined]

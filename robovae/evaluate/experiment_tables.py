@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import statistics
+from collections.abc import Callable
 from pathlib import Path
 
 from robovae.evaluate.experiment_runner import DOCS, EXPERIMENTS, MENAGERIE17, RUNS
@@ -75,7 +76,7 @@ def loss_curve_png(metrics_csv: str | Path, out: str | Path, title: str) -> Path
     return out
 
 
-def _group(results: list[dict], **match) -> list[dict]:
+def _group(results: list[dict], **match: object) -> list[dict]:
     return [r for r in results if all(r.get(k) == v for k, v in match.items())]
 
 
@@ -184,7 +185,7 @@ def pretrained_table(results: list[dict], experiment: str, name: str) -> str:
     groups = [[t for r in rs if r.get("seed", 0) == s for t in zip(r["test_z"], r["test"])]
               for s in seeds]
     if groups and groups[0]:
-        def mean(fn, side: int = 0) -> list[float]:
+        def mean(fn: Callable[[dict], float], side: int = 0) -> list[float]:
             return [statistics.mean(fn(t[side]) for t in g) for g in groups]
 
         exact = [sum(float(t[0]["exact"]) for t in g) for g in groups]

@@ -20,6 +20,7 @@ import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import lightning as L
 
@@ -33,6 +34,9 @@ from robovae.evaluate.experiment_runner import (
     _names_arg,
 )
 from robovae.files import atomic_json
+
+if TYPE_CHECKING:
+    from robovae.evaluate.metrics import Reconstruction
 
 __all__ = ["PretrainedWeights", "finetune_specs", "zeroshot"]
 
@@ -64,7 +68,8 @@ class PretrainedWeights(L.Callback):
         pl_module.on_load_checkpoint(ckpt)
 
 
-def _robot_rows(results, costs) -> list[dict]:
+def _robot_rows(results: Sequence[Reconstruction], costs: Sequence[dict[str, float]]
+                ) -> list[dict]:
     return [{"name": r.name, "ra": r.ra, "ra_true": r.ra_true, "exact": r.exact, "fre": r.fre,
              "n_true": r.n_true, "n_pred": r.n_pred, "n_correct": r.n_correct, **c}
             for r, c in zip(results, costs)]

@@ -18,6 +18,7 @@ import math
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from robovae.data.features import Feature, FeatureSet, get_feature_set
 from robovae.data.tree_arrays import RobotTree, TreeArrays, children, feature_values
@@ -37,7 +38,7 @@ def as_feature_set(feature_set: str | FeatureSet) -> FeatureSet:
     return get_feature_set(feature_set) if isinstance(feature_set, str) else feature_set
 
 
-def node_mask(fs: FeatureSet, types) -> np.ndarray:
+def node_mask(fs: FeatureSet, types: npt.ArrayLike) -> np.ndarray:
     """``fs.mask(types)`` as a NumPy ``[N, dim]`` bool array (:meth:`FeatureSet.mask_array`)."""
     return fs.mask_array(types)
 
@@ -75,7 +76,7 @@ class GraphView:
         """The columns of feature ``key`` of node ``i`` (a view: writing to it changes ``x``)."""
         return self.x[i, self.fs.slice(key)]
 
-    def set(self, i: int, key: str, value) -> None:
+    def set(self, i: int, key: str, value: npt.ArrayLike) -> None:
         """Set the columns of feature ``key`` of node ``i`` (a scalar fills them all)."""
         self.x[i, self.fs.slice(key)] = value
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 __all__ = ["mjcf_round", "mjcf_round_groups", "mjcf_round_rows", "mjcf_round_up",
            "mjcf_round_vector", "mjcf_round_vectors", "rounded_inertia"]
@@ -26,7 +27,7 @@ def mjcf_round(v: float) -> float:
     return float(f"{v:.6g}")
 
 
-def mjcf_round_vector(vec) -> list[float]:
+def mjcf_round_vector(vec: npt.ArrayLike) -> list[float]:
     """A vector as written: each component :func:`mjcf_round`-ed, components with
     ``|a| ≤ 1e-12 · max |a|`` set to 0."""
     if isinstance(vec, np.ndarray):
@@ -129,7 +130,7 @@ def mjcf_round_up(v: float) -> float:
     return q
 
 
-def rounded_inertia(inertia) -> tuple[list[float], bool]:
+def rounded_inertia(inertia: npt.ArrayLike) -> tuple[list[float], bool]:
     """A diagonal inertia as written that still satisfies ``a + b ≥ c`` for every permutation.
 
     The vector is :func:`mjcf_round_vector`-ed; while the two smaller components ``a ≤ b`` fall

@@ -27,13 +27,13 @@ import re
 import shutil
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Protocol, TextIO
+from typing import TYPE_CHECKING, Protocol, TextIO
 
 import torch
 
@@ -51,6 +51,9 @@ from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import PRIORS, RoboVAE
 from robovae.options import check_generate
+
+if TYPE_CHECKING:
+    from tqdm.auto import tqdm
 
 MANIFEST = "manifest.jsonl"
 SUMMARY = "summary.json"
@@ -293,7 +296,8 @@ def generate(
     return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 
 
-def _finish(manifest: TextIO, records: list[dict], built, bar) -> None:
+def _finish(manifest: TextIO, records: list[dict], built: Iterable[dict],
+            bar: tqdm) -> None:
     """Merge a batch's worker results into its records and append them to the manifest."""
     append_records(manifest, merge_built(records, built))
     bar.update(len(records))
@@ -339,7 +343,7 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     return records, items
 
 
-def merge_built(records: list[dict], built) -> list[dict]:
+def merge_built(records: list[dict], built: Iterable[dict]) -> list[dict]:
     """The second half of :func:`write_records`: each record completed with what
     :func:`~robovae.generate.build.build_robot` returned for it (in order)."""
     for rec, b in zip(records, built):

@@ -58,6 +58,7 @@ from typing import Literal
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from robovae.data.actuators import speed_limited
 from robovae.data.box_axes import axes_to_quats
@@ -162,7 +163,8 @@ class SpecBuilder:
 
     # -- elements ------------------------------------------------------------------------------
 
-    def _inertial(self, body: mujoco.MjsBody, mass: float, inertia, ipos, iquat) -> None:
+    def _inertial(self, body: mujoco.MjsBody, mass: float, inertia: npt.ArrayLike,
+                  ipos: npt.ArrayLike, iquat: npt.ArrayLike) -> None:
         body.mass = mjcf_round(mass)
         body.inertia, moved = rounded_inertia(inertia)
         if moved:

@@ -39,6 +39,8 @@ limb, attached at ``M p`` right after it. The training robots pair their limbs o
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import torch
 
@@ -193,7 +195,7 @@ def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
     out = row.copy()
     m = _M
 
-    def put(key: str, fn) -> None:
+    def put(key: str, fn: Callable[[np.ndarray], np.ndarray]) -> None:
         if v.has(key):
             sl = v.fs.slice(key)
             out[sl] = fn(row[sl])

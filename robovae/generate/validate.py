@@ -42,7 +42,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -297,7 +297,7 @@ def _validate_kw(args: tuple[str, dict]) -> dict:
 
 
 def validate_many(paths: Sequence[str | Path], jobs: int = 0, chunksize: int = 16,
-                  **kw) -> list[Validation]:
+                  **kw: Any) -> list[Validation]:
     """Validate many robots in ``jobs`` worker processes (0: all cores; spawned:
     :func:`robovae.data.workers.process_pool`), in input order;
     ``kw`` as in :func:`validate_robot`."""

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from lightning.pytorch.callbacks import ModelCheckpoint
-from lightning.pytorch.cli import LightningArgumentParser, LightningCLI
+from lightning.pytorch.cli import ArgsType, LightningArgumentParser, LightningCLI
 
 from robovae.data.datamodule import RobotDataModule
 from robovae.errors import RobovaeError
@@ -51,7 +51,7 @@ class RoboVAECLI(LightningCLI):
         parser.set_defaults({"checkpoint.save_last": True, "checkpoint.save_top_k": 1})
         parser.add_lightning_class_args(ReconstructionMetrics, "metrics")
 
-    def parse_arguments(self, parser: LightningArgumentParser, args) -> None:
+    def parse_arguments(self, parser: LightningArgumentParser, args: ArgsType) -> None:
         """Parse, then refuse an unsafe ``ckpt_path`` before anything reads it (LightningCLI
         itself loads its hyperparameters right after parsing)."""
         super().parse_arguments(parser, args)

@@ -14,6 +14,7 @@ computation in plain autograd ops (tests compare values and gradients in float64
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import torch
 from torch import Tensor
@@ -109,8 +110,10 @@ class _LevelMessages(torch.autograd.Function):
     ``split`` per buffer: Python-level slicing is a visible cost at this op size.
     """
 
+    # ctx: Any, as in torch.autograd.Function: it carries attributes of ours (sched, ne, fwd)
+    # that torch's FunctionCtx does not declare
     @staticmethod
-    def forward(ctx, px: Tensor, wz: Tensor, wh: Tensor, ur: Tensor, br: Tensor,
+    def forward(ctx: Any, px: Tensor, wz: Tensor, wh: Tensor, ur: Tensor, br: Tensor,
                 sched: TreeSchedule, num_encoder: int) -> tuple[Tensor, Tensor, Tensor]:
         c_, n, h = px.shape[0], px.shape[1], wz.shape[-1]
         sizes, at, max_rank = sched.sizes, sched.at, sched.max_rank
@@ -185,7 +188,8 @@ class _LevelMessages(torch.autograd.Function):
         return down, down + inp[:, :n, :h], inp[:, n:, :h]
 
     @staticmethod
-    def backward(ctx, g_down: Tensor, g_total: Tensor, g_sdown: Tensor):
+    def backward(ctx: Any, g_down: Tensor, g_total: Tensor, g_sdown: Tensor
+                 ) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor, None, None]:
         wz, wh, ur = ctx.saved_tensors
         sched, ne = ctx.sched, ctx.ne
         inp, ug, down, r_up, zc_up, zc_dn, r_dn = ctx.fwd

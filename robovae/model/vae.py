@@ -23,9 +23,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import lightning as L
 import torch
+from lightning.pytorch.utilities.types import STEP_OUTPUT, OptimizerLRScheduler
 from torch import Tensor
 from torch.utils.data import DataLoader, RandomSampler
 from torch_geometric.data import Batch, Data
@@ -226,7 +228,7 @@ class RoboVAE(PriorSampling, L.LightningModule):
                 sampler.generator = torch.Generator().manual_seed(
                     run_seed(SHUFFLE, self.current_epoch, k, self.global_rank))
 
-    def on_train_batch_end(self, outputs, batch, batch_idx: int) -> None:
+    def on_train_batch_end(self, outputs: STEP_OUTPUT, batch: Any, batch_idx: int) -> None:
         """After the last step of the last epoch (before its validation and checkpoint), fit
         the sampling mixture to the training robots' latents
         (:func:`~robovae.model.latent_mixture.fit_to_robots`; every process the same robots)."""
@@ -311,7 +313,7 @@ class RoboVAE(PriorSampling, L.LightningModule):
         return {"index": batch["index"], "z": z, "graphs": graphs, "draws": draws,
                 "seed": seed, "temperature": temp}
 
-    def configure_optimizers(self):
+    def configure_optimizers(self) -> OptimizerLRScheduler:
         """AdamW; with ``lr_schedule="cosine"`` the rate follows
         ``lr_e = lr (f + (1 - f) (1 + cos(pi e / E)) / 2)``, ``f = lr_min_factor``."""
         hp = self.hparams

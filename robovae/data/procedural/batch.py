@@ -16,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass
 from functools import cache
@@ -143,7 +143,8 @@ def _graph_batch(jobs: list[tuple[int, str]], feature_set: str) -> list[dict]:
         torch.set_num_threads(threads)
 
 
-def _run(fn, jobs: list, args: tuple, workers: int, progress: bool, desc: str) -> list:
+def _run(fn: Callable[..., list], jobs: list, args: tuple, workers: int, progress: bool,
+         desc: str) -> list:
     """``fn(chunk, *args)`` over chunks of ``jobs`` in ``workers`` processes, results in order."""
     from tqdm.auto import tqdm
 

@@ -26,7 +26,8 @@ _TRUE, _FALSE = mujoco.mjtLimited.mjLIMITED_TRUE, mujoco.mjtLimited.mjLIMITED_FA
 _TRN_JOINT = mujoco.mjtTrn.mjTRN_JOINT
 
 
-def _fill(spec: mujoco.MjSpec, body, part: Part, conaff: int, actuators: bool) -> None:
+def _fill(spec: mujoco.MjSpec, body: mujoco.MjsBody, part: Part, conaff: int,
+          actuators: bool) -> None:
     for k, j in enumerate(part.joints):
         name = f"{part.name}_j{k}"
         extra = {} if j.type == "ball" else {"axis": list(j.axis)}

@@ -28,6 +28,8 @@ than ``N``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, gait, random_gaits
@@ -120,7 +122,8 @@ def trials_search(trials: GaitTrials, rollouts: int = 16, refine: int = 496, see
                          rollouts + generations * population, power)
 
 
-def budget_gait(robot: Robot, search: str = "random", rollouts: int = 64, **kw) -> GaitResult:
+def budget_gait(robot: Robot, search: str = "random", rollouts: int = 64,
+                **kw: Any) -> GaitResult:
     """The best gait of at most ``rollouts`` rollouts found by ``search`` (module docstring):
     ``"random"``, :func:`~robovae.evaluate.quality.locomotion.gait`; ``"cma"``,
     :func:`searched_gait` with ``max(1, rollouts // 4)`` random gaits and the rest in CMA-ES

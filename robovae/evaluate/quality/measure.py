@@ -32,10 +32,11 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from contextlib import nullcontext
 from pathlib import Path
+from typing import Any, ParamSpec, TypeVar
 
 import mujoco
 
@@ -54,7 +55,12 @@ QUALITY_KEYS = ("all_attached", "detached_share", "self_penetrating", "symmetric
                 "floating", "stands", "limbs", "bodies", "dof", "mass")
 
 
-def _timed(out: dict, key: str, fn, *args, **kwargs):
+_P = ParamSpec("_P")
+_T = TypeVar("_T")
+
+
+def _timed(out: dict, key: str, fn: Callable[_P, _T], *args: _P.args,
+           **kwargs: _P.kwargs) -> _T:
     t = time.perf_counter()
     try:
         return fn(*args, **kwargs)
@@ -134,7 +140,7 @@ def _measure_item(item: tuple) -> dict:
 def measure_many(robots: Sequence[str | os.PathLike | mujoco.MjSpec], jobs: int = 2,
                  progress: bool = True, desc: str = "quality",
                  names: Sequence[str] | None = None, pool: Executor | None = None,
-                 **kw) -> list[dict]:
+                 **kw: Any) -> list[dict]:
     """:func:`measure` (keyword arguments ``kw``) of many robots, in order, in ``jobs`` worker
     processes (``spawn``; ``0``: all cores, ``1``: in this process), with a tqdm progress bar
     labelled ``desc``; robot ``k`` is called ``names[k]`` when given. ``pool``: worker

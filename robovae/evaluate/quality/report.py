@@ -26,6 +26,7 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -87,7 +88,7 @@ def _pr(reference: Sequence[dict], samples: Sequence[dict], k: int = 3) -> tuple
     return precision_recall(ref, smp, k)
 
 
-def _fmt(v, fmt: str) -> str:
+def _fmt(v: float | None, fmt: str) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
     return fmt.format(v)
@@ -153,7 +154,8 @@ def quality_table(populations: Mapping[str, Sequence[dict]], corpus: str = "trai
     return table, ["measure", *names], numbers
 
 
-def format_quality(populations: Mapping[str, Sequence[dict]], **kw) -> str:
+def format_quality(populations: Mapping[str, Sequence[dict]],
+                   **kw: Any) -> str:
     """:func:`quality_table` as plain text."""
     rows, cols, _ = quality_table(populations, **kw)
     return format_table(rows, cols)
