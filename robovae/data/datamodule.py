@@ -16,6 +16,7 @@ from robovae.data.augment import Augmentation, FeatureJitter, TreeSurgery
 from robovae.data.dataset import RobotDataset
 from robovae.data.latents import LatentIndices
 from robovae.data.normalizer import Normalizer
+from robovae.settings import FEATURE_SET, check_settings, integer, number
 
 
 def select_names(names: Sequence[str], wanted: Sequence[str]) -> list[int]:
@@ -108,6 +109,19 @@ class RobotDataModule(L.LightningDataModule):
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
+        share = number(0, 1, high_open=True)
+        check_settings(
+            "data", feature_set=(feature_set, FEATURE_SET), val_fraction=(val_fraction, share),
+            test_fraction=(test_fraction, share), batch_size=(batch_size, integer(1)),
+            num_workers=(num_workers, integer(0)), predict_samples=(predict_samples, integer(0)),
+            predict_temperature=(predict_temperature, number(0)),
+            predict_redraws=(predict_redraws, integer(0)),
+            feature_shift=(feature_shift, number(0)), feature_noise=(feature_noise, number(0)),
+            tree_surgery=(tree_surgery, number(0, 1)), surgery_ops=(surgery_ops, integer(1)),
+            surgery_max_nodes=(surgery_max_nodes, integer(1)))
+        if val_fraction + test_fraction >= 1:
+            raise ValueError(f"robovae: data.val_fraction + data.test_fraction must be below 1 "
+                             f"(no robot left to train on), got {val_fraction + test_fraction:g}")
         self.dataset: RobotDataset | None = None
         self.normalizer: Normalizer | None = None
         # robots already written: a list, or a function asked when the predict set is built

@@ -46,6 +46,7 @@ from robovae.model.prior import draw_robots
 from robovae.model.records import from_columns, to_columns
 from robovae.model.sampling import PriorSampling
 from robovae.model.tree import TreeSchedule, tree_schedule
+from robovae.settings import FEATURE_SET, check_settings, choice, integer, number
 
 
 def _draw(mu: Tensor, logvar: Tensor, sample: bool,
@@ -62,6 +63,8 @@ def _draw(mu: Tensor, logvar: Tensor, sample: bool,
 
 #: Sampling priors of :meth:`RoboVAE.sample_prior`.
 PRIORS = ("mixture", "standard")
+#: Learning-rate schedules of :meth:`RoboVAE.configure_optimizers`.
+LR_SCHEDULES = ("cosine", "constant")
 
 
 class RoboVAE(PriorSampling, L.LightningModule):
@@ -134,10 +137,22 @@ class RoboVAE(PriorSampling, L.LightningModule):
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
-        if prior not in PRIORS:
-            raise ValueError(f"robovae: prior must be one of {', '.join(PRIORS)}, got {prior!r}")
-        if node_temperature is not None and not node_temperature >= 0:
-            raise ValueError(f"robovae: node_temperature must be >= 0, got {node_temperature!r}")
+        check_settings(
+            "model", feature_set=(feature_set, FEATURE_SET), hidden_dim=(hidden_dim, integer(1)),
+            latent_dim=(latent_dim, integer(2)),
+            beta=(beta, number(0)), beta_start=(beta_start, number(0)),
+            beta_warmup_epochs=(beta_warmup_epochs, integer(0)),
+            lr=(lr, number(0, low_open=True)), weight_decay=(weight_decay, number(0)),
+            lr_schedule=(lr_schedule, choice(LR_SCHEDULES)),
+            lr_min_factor=(lr_min_factor, number(0, 1)), max_nodes=(max_nodes, integer(1)),
+            max_depth=(max_depth, integer(0)),
+            support_margin=(support_margin, number(0).or_none()),
+            node_latent_dim=(node_latent_dim, integer(1)),
+            beta_nodes=(beta_nodes, number(0).or_none()),
+            tree_latent_dim=(tree_latent_dim, integer(1).or_none()),
+            prior_components=(prior_components, integer(0)), prior=(prior, choice(PRIORS)),
+            feature_layers=(feature_layers, integer(1)),
+            node_temperature=(node_temperature, number(0).or_none()))
         self.latent_mixture = LatentMixture(latent_dim, prior_components) \
             if prior_components > 0 else None
         fs = get_feature_set(feature_set)
@@ -320,8 +335,7 @@ class RoboVAE(PriorSampling, L.LightningModule):
         opt = torch.optim.AdamW(self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
         if hp.lr_schedule == "constant":
             return opt
-        if hp.lr_schedule != "cosine":
-            raise ValueError(f"robovae: unknown lr_schedule {hp.lr_schedule!r}")
+        # (the constructor refused any other schedule)
         epochs = max(1, self.trainer.max_epochs or 1)
         floor = hp.lr_min_factor
 

@@ -244,9 +244,22 @@ def test_from_z_reconstruction_and_latent_costs(trained_nodes):
 
 
 @pytest.mark.parametrize(("setting", "message"), [
-    ("--model.feature_layers=0", "the feature head needs feature_layers >= 1, got 0"),
-    ("--model.tree_latent_dim=0", "tree_latent_dim must be in [1, latent_dim), got 0"),
-    ("--model.node_temperature=-1", "node_temperature must be >= 0, got -1.0"),
+    ("--model.feature_layers=0", "model.feature_layers must be an integer >= 1, got 0"),
+    ("--model.tree_latent_dim=0", "model.tree_latent_dim must be an integer >= 1, or null, "
+                                  "got 0"),
+    ("--model.tree_latent_dim=8", "tree_latent_dim must be in [1, latent_dim), got 8"),
+    ("--model.node_temperature=-1", "model.node_temperature must be a number >= 0, or null, "
+                                    "got -1.0"),
+    # accepted before 2026-11-29: a negative KL weight or learning rate trained without a word,
+    # an unknown schedule failed after the dataset was built
+    ("--model.beta=-1", "model.beta must be a number >= 0, got -1.0"),
+    ("--model.lr=0", "model.lr must be a number > 0, got 0.0"),
+    ("--model.lr_schedule=step", "model.lr_schedule must be one of cosine, constant, got 'step'"),
+    ("--data.feature_set=nope", "model.feature_set must be a feature set: paper34, kinematic, "
+                                "full or random<d>, got 'nope'"),
+    ("--data.batch_size=0", "data.batch_size must be an integer >= 1, got 0"),
+    ("--data.val_fraction=0.9", "data.val_fraction + data.test_fraction must be below 1"),
+    ("--data.tree_surgery=1.5", "data.tree_surgery must be a number in [0, 1], got 1.5"),
 ])
 def test_cli_refuses_an_invalid_model_setting_in_one_line(setting, message, tmp_path, capsys,
                                                           monkeypatch):

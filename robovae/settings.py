@@ -1,0 +1,92 @@
+"""The allowed values of a class's settings (a config's ``model:`` and ``data:`` sections).
+
+A constructor states each setting's rule and calls :func:`check_settings` first, so that a value
+out of range is refused when the class is built — by ``robovae fit`` before the dataset is
+built and before any training, in one line naming every bad setting
+(:meth:`robovae.model.cli.RoboVAECLI.instantiate_classes`) — not minutes later, or never (a
+negative ``beta`` or ``lr`` trains without complaint). Importable without torch.
+
+    check_settings("model", beta=(beta, number(0)), hidden_dim=(hidden_dim, integer(1)))
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TypeGuard
+
+__all__ = ["FEATURE_SET", "Rule", "check_settings", "choice", "integer", "number"]
+
+
+@dataclass(frozen=True)
+class Rule:
+    """The values a setting may take: ``test(value)`` says whether ``value`` is one, ``want``
+    says which they are (``an integer >= 1``)."""
+
+    test: Callable[[object], bool]
+    want: str
+
+    def or_none(self) -> Rule:
+        """The same values, or None (``null`` in a config)."""
+        return Rule(lambda v: v is None or self.test(v), f"{self.want}, or null")
+
+
+def _real(v: object) -> TypeGuard[float]:
+    """A finite int or float, not a bool."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def integer(least: int) -> Rule:
+    """An integer (not a bool) ``>= least``."""
+    return Rule(lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= least,
+                f"an integer >= {least}")
+
+
+def number(low: float, high: float = math.inf, *, low_open: bool = False,
+           high_open: bool = False) -> Rule:
+    """A finite number in ``[low, high]`` (``low_open``/``high_open``: that end excluded)."""
+    def test(v: object) -> bool:
+        return (_real(v) and (v > low if low_open else v >= low)
+                and (v < high if high_open else v <= high))
+
+    if high == math.inf:
+        want = f"a number {'>' if low_open else '>='} {low:g}"
+    else:
+        want = (f"a number in {'(' if low_open else '['}{low:g}, {high:g}"
+                f"{')' if high_open else ']'}")
+    return Rule(test, want)
+
+
+def choice(values: Sequence[str]) -> Rule:
+    """One of ``values``."""
+    return Rule(lambda v: v in values, f"one of {', '.join(values)}")
+
+
+def _is_feature_set(v: object) -> bool:
+    from robovae.data.features import get_feature_set  # NumPy only
+
+    if not isinstance(v, str):
+        return False
+    try:
+        get_feature_set(v)
+    except KeyError:
+        return False
+    return True
+
+
+#: A feature set of the registry (:func:`robovae.data.features.get_feature_set`).
+FEATURE_SET = Rule(_is_feature_set, "a feature set: paper34, kinematic, full or random<d>")
+
+
+def check_settings(section: str, **settings: tuple[object, Rule]) -> None:
+    """Refuse every setting whose value breaks its rule, ``name=(value, rule)``.
+
+    Raises:
+        ValueError: one line, ``robovae: <section>.<name> must be <want>, got <value>`` for
+            each bad setting, joined by ``;``.
+    """
+    bad = [f"{section}.{name} must be {rule.want}, got {value!r}"
+           for name, (value, rule) in settings.items() if not rule.test(value)]
+    if bad:
+        raise ValueError("robovae: " + "; ".join(bad))
