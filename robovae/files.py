@@ -87,9 +87,11 @@ def robot_files(paths: Sequence[str | os.PathLike]) -> list[Path]:
     return found
 
 
-def writable(out: str | os.PathLike, what: str = "files") -> Path:
+def writable(out: str | os.PathLike, what: str = "files", make: bool = True) -> Path:
     """Create the folder ``out`` (and its parents) and check that files can be made in it;
-    returns it.
+    returns it. ``make=False``: make no folder, check the nearest of ``out`` and its parents
+    that exists instead (a run refused later leaves no empty folder behind; the writer makes
+    ``out``).
 
     Raises:
         RobovaeError: one line naming ``out`` (``cannot write <what> there``) when it cannot be
@@ -98,6 +100,9 @@ def writable(out: str | os.PathLike, what: str = "files") -> Path:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: cannot write {what} there (a file, not a folder)")
+    if not make:
+        writable(next(p for p in (out, *out.parents) if p.exists()), what)
+        return out
     try:
         out.mkdir(parents=True, exist_ok=True)
         tempfile.TemporaryFile(dir=out).close()
@@ -119,6 +124,5 @@ def writable_file(path: str | os.PathLike, what: str = "files") -> Path:
     path = Path(path)
     if path.is_dir():
         raise RobovaeError(f"robovae: {path}: a folder, not a file name for the {what}")
-    folder = path.parent
-    writable(next(p for p in (folder, *folder.parents) if p.exists()), what)
+    writable(path.parent, what, make=False)
     return path

@@ -218,7 +218,7 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
                   entropy_seconds=entropy_seconds, gait_rollouts=gait_rollouts,
                   gait_search=gait_search)
     if sheets is not None:  # before minutes of work, not after
-        writable(sheets, "contact sheets")
+        writable(sheets, "contact sheets", make=False)  # contact_sheets makes it
     files = sample_files(samples) if samples is not None else []  # checked first
     if samples is not None and not files:
         raise RobovaeError(f"robovae: {samples}: no robot to analyse (no robot_*/robot.xml or "

@@ -220,9 +220,16 @@ def test_analyze_refuses_an_unwritable_json_or_sheets_before_any_work(trained, t
                                  ("--json", tmp_path / "file" / "r.json",
                                   "file: cannot write report there"),
                                  ("--sheets", tmp_path / "file" / "sheets",
-                                  "file/sheets: cannot write contact sheets there")):
+                                  "file: cannot write contact sheets there")):
         rc = main(["analyze", "--ckpt", str(ckpt), "--behaviour", "0", "--root", str(cache),
                    flag, str(value)])
         err = capsys.readouterr().err
         assert rc == 2 and message in err and len(err.strip().splitlines()) == 1, err
         assert not cache.exists()
+    # a run refused after the check (no robot in --samples) leaves no empty --sheets folder
+    (tmp_path / "empty").mkdir()
+    rc = main(["analyze", "--ckpt", str(ckpt), "--behaviour", "0", "--root", str(cache),
+               "--samples", str(tmp_path / "empty"), "--sheets", str(tmp_path / "new" / "s")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "no robot" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "new").exists()
