@@ -25,7 +25,7 @@ from pathlib import Path
 from robovae.data.graph import RobotData
 from robovae.data.procedural.batch import ProceduralSource, parse_procedural
 from robovae.data.robot_file import SUFFIXES
-from robovae.errors import RobovaeError
+from robovae.errors import RobovaeError, option_int
 
 
 @dataclass
@@ -39,13 +39,30 @@ class Resolved:
     feature_set: str | None = None  # forced by synthetic sources (random<d>)
 
 
-def _options(arg: str) -> dict[str, str]:
-    out = {}
-    for part in filter(None, arg.split(",")):
+#: The options of ``synthetic:`` and their ranges (default, lowest, highest).
+SYNTHETIC_OPTIONS = {"n": (20, 1, 1_000_000), "nodes": (15, 1, 10_000), "dim": (5, 1, 1_000),
+                     "seed": (0, 0, 2**31 - 1), "unseen": (0, 0, 1)}
+
+
+def parse_synthetic(arg: str) -> dict[str, int]:
+    """The options of ``synthetic:n=20,nodes=15,dim=5,seed=0,unseen=0``, each an integer in
+    its range (:data:`SYNTHETIC_OPTIONS`), defaults filled in.
+
+    Raises:
+        RobovaeError: one line naming the bad option (not ``key=value``, unknown, not an
+            integer, out of range).
+    """
+    where = "synthetic source"
+    out = {k: default for k, (default, _, _) in SYNTHETIC_OPTIONS.items()}
+    for part in filter(None, (p.strip() for p in arg.split(","))):
         if "=" not in part:
-            raise RobovaeError(f"robovae: source option '{part}' is not key=value")
-        k, v = part.split("=", 1)
-        out[k.strip()] = v.strip()
+            raise RobovaeError(f"robovae: {where}: option '{part}' is not key=value")
+        k, v = (t.strip() for t in part.split("=", 1))
+        if k not in SYNTHETIC_OPTIONS:
+            raise RobovaeError(f"robovae: {where}: unknown option '{k}' "
+                               f"({', '.join(SYNTHETIC_OPTIONS)})")
+        _, lo, hi = SYNTHETIC_OPTIONS[k]
+        out[k] = option_int(where, k, v, lo, hi)
     return out
 
 
@@ -117,12 +134,14 @@ def resolve_sources(sources: list[str] | tuple[str, ...]) -> Resolved:
         elif kind == "synthetic":
             from robovae.data.synthetic import random_trees, unseen_random_tree
 
-            o = _options(arg)
-            n, nodes, dim = int(o.get("n", 20)), int(o.get("nodes", 15)), int(o.get("dim", 5))
-            seed = int(o.get("seed", 0))
-            trees = random_trees(n, nodes, dim, seed=seed)
-            if int(o.get("unseen", 0)):
-                extra = unseen_random_tree(trees, nodes, dim, seed=seed + 1)
+            o = parse_synthetic(arg)
+            nodes, dim, seed = o["nodes"], o["dim"], o["seed"]
+            trees = random_trees(o["n"], nodes, dim, seed=seed)
+            if o["unseen"]:
+                try:
+                    extra = unseen_random_tree(trees, nodes, dim, seed=seed + 1)
+                except RuntimeError as e:  # small trees: every shape is among the n
+                    raise RobovaeError(f"robovae: {src}: {e}") from None
                 extra.name = "random_unseen"
                 trees.append(extra)
             out.graphs += trees

@@ -209,6 +209,11 @@ def is_isomorphic(a: RobotData | Tensor | Sequence[int], b: RobotData | Tensor |
     return len(_parent_of(a)) == len(_parent_of(b)) and canonical_form(a) == canonical_form(b)
 
 
+#: Unlabelled unrooted trees of ``n`` nodes, ``n = 0 … 12`` (OEIS A000055): a training set that
+#: holds that many shapes of ``n`` nodes leaves none unseen.
+TREE_SHAPES = (1, 1, 1, 1, 2, 3, 6, 11, 23, 47, 106, 235, 551)
+
+
 def unseen_random_tree(
     train: Iterable[RobotData],
     num_nodes: int = 15,
@@ -223,10 +228,15 @@ def unseen_random_tree(
     being the number of rejected draws.
 
     Raises:
-        RuntimeError: when ``max_tries`` draws were all seen (e.g. ``train`` holds every shape
-            of ``num_nodes`` nodes).
+        RuntimeError: when ``train`` holds every shape of ``num_nodes`` nodes
+            (:data:`TREE_SHAPES`, at once), or ``max_tries`` draws were all seen.
     """
-    seen = {canonical_form(t) for t in train}
+    shapes = {(t.num_nodes, canonical_form(t)) for t in train}
+    seen = {form for _, form in shapes}
+    if (num_nodes < len(TREE_SHAPES)
+            and sum(n == num_nodes for n, _ in shapes) >= TREE_SHAPES[num_nodes]):
+        raise RuntimeError(f"every tree shape of {num_nodes} nodes ({TREE_SHAPES[num_nodes]}) "
+                           "is in training: none is unseen")
     g = _as_generator(seed)
     for k in range(max_tries):
         tree = random_tree(num_nodes, dim, g, name=f"random_tree_unseen_{seed}_{k}")

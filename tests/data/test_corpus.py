@@ -325,3 +325,21 @@ def test_cli_unknown_source_is_one_line(tmp_path, capsys):
     assert main(["data", "--root", str(tmp_path), "--source", "bogus:x"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("robovae: unknown source 'bogus:x'") and "\n" not in err
+
+
+@pytest.mark.parametrize(("source", "message"), [
+    # tracebacks before 2026-11-29 (int() of the text, the tree builder's checks)
+    ("synthetic:n=abc", "synthetic source: n='abc' is not an integer"),
+    ("synthetic:n=2,nodes=0", "synthetic source: nodes=0 is outside [1, 10000]"),
+    ("synthetic:n=2,nodes=3,unseen=1", "synthetic:n=2,nodes=3,unseen=1: every tree shape of 3 "
+                                       "nodes (1) is in training: none is unseen"),
+    # accepted before: an unknown key ignored, n=-2 made no robot ("no robot loaded")
+    ("synthetic:n=3,depth=4", "synthetic source: unknown option 'depth'"),
+    ("synthetic:n=-2", "synthetic source: n=-2 is outside [1, 1000000]"),
+    ("procedural:n=abc", "procedural source: n='abc' is not an integer"),
+])
+def test_cli_bad_source_options_are_one_line(source, message, tmp_path, capsys):
+    assert main(["data", "--root", str(tmp_path / "cache"), "--source", source]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"robovae: {message}") and "\n" not in err, err
+    assert not (tmp_path / "cache").exists()

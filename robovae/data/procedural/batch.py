@@ -35,7 +35,7 @@ from robovae.data.procedural.robots import (
     procedural_spec,
 )
 from robovae.data.workers import process_pool
-from robovae.errors import RobovaeError
+from robovae.errors import RobovaeError, option_int
 from robovae.files import atomic_write
 
 #: Most robots one ``procedural:`` source may ask for.
@@ -69,14 +69,7 @@ class ProceduralSource:
 
 
 def _int(name: str, text: str, lo: int, hi: int) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise RobovaeError(f"robovae: procedural source: {name}={text!r} is not an integer") \
-            from None
-    if not lo <= v <= hi:
-        raise RobovaeError(f"robovae: procedural source: {name}={v} is outside [{lo}, {hi}]")
-    return v
+    return option_int("procedural source", name, text, lo, hi)
 
 
 def parse_procedural(arg: str) -> ProceduralSource:
