@@ -25,22 +25,6 @@ def check_count(option: str, value: object, least: int) -> None:
                            f"not {value!r}")
 
 
-def option_int(where: str, name: str, text: str, lo: int, hi: int) -> int:
-    """The integer option ``name=text`` of ``where`` (e.g. a source string), in ``[lo, hi]``.
-
-    Raises:
-        RobovaeError: one line, ``robovae: <where>: <name>='x' is not an integer`` or ``…
-            is outside [lo, hi]``.
-    """
-    try:
-        v = int(text)
-    except ValueError:
-        raise RobovaeError(f"robovae: {where}: {name}={text!r} is not an integer") from None
-    if not lo <= v <= hi:
-        raise RobovaeError(f"robovae: {where}: {name}={v} is outside [{lo}, {hi}]")
-    return v
-
-
 class RobotFileError(RobovaeError):
     """A robot file that cannot become a robot graph.
 

@@ -8,15 +8,54 @@ generate` calls :func:`check_generate`, :func:`robovae.design.variations.generat
 The ``robovae`` command calls the same check before it imports the entry point's module (with it
 torch, PyG and Lightning: 5–9 s), so that a mistyped option is refused, in one line, in under a
 second. Every check raises :class:`~robovae.errors.RobovaeError` naming the option.
+
+The data sources' options (``synthetic:n=20,…``, ``procedural:n=1000,…``) are parsed by
+:func:`source_options` and :func:`option_int`, the same way for every source.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 from robovae.errors import RobovaeError, check_count
 
-__all__ = ["check_analyze", "check_generate", "check_interpolate", "check_like", "check_optimize"]
+__all__ = ["check_analyze", "check_generate", "check_interpolate", "check_like", "check_optimize",
+           "option_int", "source_options"]
+
+
+def source_options(where: str, arg: str, keys: Sequence[str]) -> dict[str, str]:
+    """The ``key=value`` options of a source string's argument (``n=20,seed=0``), every key one
+    of ``keys``; ``where`` names the source in errors (``synthetic source``).
+
+    Raises:
+        RobovaeError: one line naming the option that is not ``key=value`` or not known.
+    """
+    out: dict[str, str] = {}
+    for part in filter(None, (p.strip() for p in arg.split(","))):
+        if "=" not in part:
+            raise RobovaeError(f"robovae: {where}: option '{part}' is not key=value")
+        k, v = (t.strip() for t in part.split("=", 1))
+        if k not in keys:
+            raise RobovaeError(f"robovae: {where}: unknown option '{k}' ({', '.join(keys)})")
+        out[k] = v
+    return out
+
+
+def option_int(where: str, name: str, text: str, lo: int, hi: int) -> int:
+    """The integer option ``name=text`` of ``where`` (e.g. a source string), in ``[lo, hi]``.
+
+    Raises:
+        RobovaeError: one line, ``robovae: <where>: <name>='x' is not an integer`` or ``…
+            is outside [lo, hi]``.
+    """
+    try:
+        v = int(text)
+    except ValueError:
+        raise RobovaeError(f"robovae: {where}: {name}={text!r} is not an integer") from None
+    if not lo <= v <= hi:
+        raise RobovaeError(f"robovae: {where}: {name}={v} is outside [{lo}, {hi}]")
+    return v
 
 
 def _check_redraws(redraws: object) -> None:

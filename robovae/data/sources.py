@@ -25,7 +25,8 @@ from pathlib import Path
 from robovae.data.graph import RobotData
 from robovae.data.procedural.batch import ProceduralSource, parse_procedural
 from robovae.data.robot_file import SUFFIXES
-from robovae.errors import RobovaeError, option_int
+from robovae.errors import RobovaeError
+from robovae.options import option_int, source_options
 
 
 @dataclass
@@ -53,17 +54,9 @@ def parse_synthetic(arg: str) -> dict[str, int]:
             integer, out of range).
     """
     where = "synthetic source"
-    out = {k: default for k, (default, _, _) in SYNTHETIC_OPTIONS.items()}
-    for part in filter(None, (p.strip() for p in arg.split(","))):
-        if "=" not in part:
-            raise RobovaeError(f"robovae: {where}: option '{part}' is not key=value")
-        k, v = (t.strip() for t in part.split("=", 1))
-        if k not in SYNTHETIC_OPTIONS:
-            raise RobovaeError(f"robovae: {where}: unknown option '{k}' "
-                               f"({', '.join(SYNTHETIC_OPTIONS)})")
-        _, lo, hi = SYNTHETIC_OPTIONS[k]
-        out[k] = option_int(where, k, v, lo, hi)
-    return out
+    given = source_options(where, arg, tuple(SYNTHETIC_OPTIONS))
+    return {k: option_int(where, k, given[k], lo, hi) if k in given else default
+            for k, (default, lo, hi) in SYNTHETIC_OPTIONS.items()}
 
 
 def find_robot_files(folder: Path) -> list[Path]:

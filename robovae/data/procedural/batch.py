@@ -35,8 +35,9 @@ from robovae.data.procedural.robots import (
     procedural_spec,
 )
 from robovae.data.workers import process_pool
-from robovae.errors import RobovaeError, option_int
+from robovae.errors import RobovaeError
 from robovae.files import atomic_write
+from robovae.options import option_int, source_options
 
 #: Most robots one ``procedural:`` source may ask for.
 MAX_ROBOTS = 10_000_000
@@ -82,15 +83,7 @@ def parse_procedural(arg: str) -> ProceduralSource:
         RobovaeError: one line naming the bad option (not ``key=value``, unknown key, ``n``
             or ``seed`` not an integer or negative, an unknown class, a bad weight).
     """
-    opts: dict[str, str] = {}
-    for part in filter(None, (p.strip() for p in arg.split(","))):
-        if "=" not in part:
-            raise RobovaeError(f"robovae: procedural source: option '{part}' is not key=value")
-        k, v = (t.strip() for t in part.split("=", 1))
-        if k not in ("n", "seed", "classes"):
-            raise RobovaeError(f"robovae: procedural source: unknown option '{k}' "
-                               "(n, seed, classes)")
-        opts[k] = v
+    opts = source_options("procedural source", arg, ("n", "seed", "classes"))
     n = _int("n", opts.get("n", "100"), 1, MAX_ROBOTS)
     seed = _int("seed", opts.get("seed", "0"), 0, 2**31 - 1)
     mix: dict[str, float] = default_mix()
