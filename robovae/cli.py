@@ -31,6 +31,11 @@ MAX_TABLE_ROWS = 200
 
 def cmd_data(args: argparse.Namespace) -> int:
     """Build the dataset of ``--source``s and print the per-robot table."""
+    from robovae.data.features import get_feature_set  # NumPy only
+    from robovae.data.sources import check_sources  # without torch: a typo refused at once
+
+    check_sources(args.source)
+    get_feature_set(args.feature_set)
     from robovae.data.dataset import RobotDataset
 
     ds = RobotDataset(args.root, args.source, args.feature_set, jobs=args.jobs,
@@ -225,7 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--source", action="append", default=None,
                    help="zoo | menagerie:NAME,... | dir:PATH | file:PATH | synthetic:... | "
                         "procedural:n=N (repeatable; default zoo)")
-    d.add_argument("--feature-set", default="paper34", help="paper34 | full")
+    d.add_argument("--feature-set", default="paper34",
+                   help="paper34 | kinematic | full (synthetic sources: random<dim>)")
     d.add_argument("--root", default="data_cache", help="cache folder")
     d.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
     d.add_argument("--rebuild", action="store_true", help="ignore the cache")

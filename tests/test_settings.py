@@ -7,6 +7,7 @@ import math
 import pytest
 
 from robovae.data.datamodule import RobotDataModule
+from robovae.errors import RobovaeError
 from robovae.model.vae import RoboVAE
 from robovae.settings import FEATURE_SET, check_settings, choice, integer, number
 
@@ -59,3 +60,13 @@ def test_the_data_module_refuses_settings_out_of_range():
     with pytest.raises(ValueError, match="must be below 1 .no robot left to train on., got 1"):
         RobotDataModule(val_fraction=0.5, test_fraction=0.5)
     RobotDataModule(val_fraction=0.0, test_fraction=0.0)
+
+
+def test_the_data_module_refuses_bad_sources_when_built(tmp_path):
+    """A bad source is refused when the module is built (the settings' moment), before any
+    data; before 2026-11-29 random trees beside robots failed when the dataset was built."""
+    with pytest.raises(RobovaeError, match="cannot share a dataset with robots .'zoo'."):
+        RobotDataModule(root=tmp_path / "cache", sources=["zoo", "synthetic:n=2"])
+    with pytest.raises(RobovaeError, match="procedural source: n=0 is outside"):
+        RobotDataModule(root=tmp_path / "cache", sources=["procedural:n=0"])
+    assert not (tmp_path / "cache").exists()

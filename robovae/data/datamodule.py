@@ -16,6 +16,7 @@ from robovae.data.augment import Augmentation, FeatureJitter, TreeSurgery
 from robovae.data.dataset import RobotDataset
 from robovae.data.latents import LatentIndices
 from robovae.data.normalizer import Normalizer
+from robovae.data.sources import check_sources
 from robovae.settings import FEATURE_SET, check_settings, integer, number
 
 
@@ -48,7 +49,8 @@ class RobotDataModule(L.LightningDataModule):
 
     Args:
         sources: source strings (``zoo``, ``menagerie:go2``, ``dir:PATH``, ``synthetic:...``).
-        feature_set: ``paper34`` or ``full`` (synthetic sources force ``random<d>``).
+        feature_set: ``paper34``, ``kinematic`` or ``full`` (synthetic sources force
+            ``random<d>``).
         root: cache folder of the processed dataset.
         train_names: robots to train on (default: all not in val/test). Names may be shell
             patterns (``proc_*``, :func:`fnmatch.fnmatchcase`), in all three name lists.
@@ -119,6 +121,7 @@ class RobotDataModule(L.LightningDataModule):
             feature_shift=(feature_shift, number(0)), feature_noise=(feature_noise, number(0)),
             tree_surgery=(tree_surgery, number(0, 1)), surgery_ops=(surgery_ops, integer(1)),
             surgery_max_nodes=(surgery_max_nodes, integer(1)))
+        check_sources(sources)  # a bad source refused now, not when the data is built
         if val_fraction + test_fraction >= 1:
             raise ValueError(f"robovae: data.val_fraction + data.test_fraction must be below 1 "
                              f"(no robot left to train on), got {val_fraction + test_fraction:g}")

@@ -19,14 +19,18 @@ source                           robots
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from robovae.data.graph import RobotData
 from robovae.data.procedural.batch import ProceduralSource, parse_procedural
 from robovae.data.robot_file import SUFFIXES
 from robovae.errors import RobovaeError
 from robovae.options import option_int, source_options
+
+if TYPE_CHECKING:
+    from robovae.data.graph import RobotData
 
 
 @dataclass
@@ -99,16 +103,65 @@ def menagerie_file(name: str) -> Path:
     raise RobovaeError(f"robovae: menagerie:{name}: no robot file in {folder}")
 
 
-def resolve_sources(sources: list[str] | tuple[str, ...]) -> Resolved:
+def _split(src: str) -> tuple[str, str]:
+    """A source string's kind and argument: ``procedural:n=10`` → ``("procedural", "n=10")``,
+    ``zoo`` → ``("zoo", "")``, a bare path → ``("", path)``."""
+    if src == "zoo":
+        return "zoo", ""
+    kind, _, arg = src.partition(":") if ":" in src else ("", "", src)
+    return kind, arg
+
+
+def check_sources(sources: Sequence[str]) -> None:
+    """Refuse a bad source string before anything is built, downloaded or imported (this
+    module imports neither torch nor PyG: ``robovae data`` calls it before them): an unknown
+    kind, a ``synthetic:`` or ``procedural:`` option that is not one, a ``dir:`` that is not a
+    folder, a ``menagerie:`` that names no robot; and ``synthetic:`` sources beside robot
+    sources or of different ``dim`` (random trees carry ``random<dim>`` features: a robot's
+    features, or another ``dim``'s, cannot share their dataset). Files are checked when they
+    are read.
+
+    Raises:
+        RobovaeError: one line naming the source.
+    """
+    dims: dict[int, str] = {}  # the dim of each synthetic source -> its first source
+    robots = []  # the other sources
+    for src in sources:
+        kind, arg = _split(src)
+        if kind == "synthetic":
+            dims.setdefault(parse_synthetic(arg)["dim"], src)
+            continue
+        robots.append(src)
+        if kind == "procedural":
+            parse_procedural(arg)
+        elif kind == "dir" and not Path(arg).expanduser().is_dir():
+            raise RobovaeError(f"robovae: {Path(arg).expanduser()}: no such folder")
+        elif kind == "menagerie" and not any(n.strip() for n in arg.split(",")):
+            raise RobovaeError(f"robovae: source '{src}' names no robot (menagerie:go2,unitree_a1)")
+        elif kind not in ("zoo", "menagerie", "dir", "file", ""):
+            raise RobovaeError(f"robovae: unknown source '{src}' (zoo, menagerie:, dir:, file:, "
+                               "synthetic:, procedural:)")
+    first = list(dims.values())
+    if first and robots:
+        raise RobovaeError(f"robovae: source '{first[0]}' makes random trees with random<dim> "
+                           f"features: it cannot share a dataset with robots ('{robots[0]}')")
+    if len(first) > 1:
+        raise RobovaeError(f"robovae: sources '{first[0]}' and '{first[1]}' make random trees "
+                           "of different dim: they cannot share a dataset")
+
+
+def resolve_sources(sources: Sequence[str]) -> Resolved:
     """Expand source strings into files, in-memory graphs and procedural batches (module table).
 
     Raises:
-        RobovaeError: an unknown source or a bad option (one line).
+        RobovaeError: a bad source (:func:`check_sources`) or one that cannot be read (a
+            Menagerie robot not found, a synthetic set that cannot hold an unseen tree).
     """
+    check_sources(sources)
     out = Resolved()
     for src in sources:
-        kind, _, arg = src.partition(":") if ":" in src else ("", "", src)
-        if kind == "zoo" or src == "zoo":
+        kind, arg = _split(src)
+        if kind == "zoo":
             from robovae.data.zoo import zoo_files
 
             files, warns = zoo_files()
@@ -118,10 +171,7 @@ def resolve_sources(sources: list[str] | tuple[str, ...]) -> Resolved:
             for name in filter(None, (n.strip() for n in arg.split(","))):
                 out.files.append((None, menagerie_file(name)))
         elif kind == "dir" or (kind == "" and Path(arg).is_dir()):
-            folder = Path(arg).expanduser()
-            if not folder.is_dir():
-                raise RobovaeError(f"robovae: {folder}: no such folder")
-            out.files += [(None, p) for p in find_robot_files(folder)]
+            out.files += [(None, p) for p in find_robot_files(Path(arg).expanduser())]
         elif kind in ("file", ""):
             out.files.append((None, Path(arg).expanduser()))
         elif kind == "synthetic":
@@ -139,9 +189,6 @@ def resolve_sources(sources: list[str] | tuple[str, ...]) -> Resolved:
                 trees.append(extra)
             out.graphs += trees
             out.feature_set = f"random{dim}"
-        elif kind == "procedural":
+        else:  # procedural (check_sources refused every other kind)
             out.procedural.append(parse_procedural(arg))
-        else:
-            raise RobovaeError(f"robovae: unknown source '{src}' (zoo, menagerie:, dir:, file:, "
-                               "synthetic:, procedural:)")
     return out

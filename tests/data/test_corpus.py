@@ -24,7 +24,7 @@ from robovae.data.features import JOINT, LINK
 from robovae.data.mjcf import mjcf_to_graph, model_to_graph
 from robovae.data.robot_file import MAX_BODIES
 from robovae.errors import RobotFileError
-from tests.conftest import CORPUS
+from tests.conftest import CORPUS, in_fresh_python
 
 pytestmark = pytest.mark.timeout(120, method="thread")
 
@@ -337,9 +337,39 @@ def test_cli_unknown_source_is_one_line(tmp_path, capsys):
     ("synthetic:n=3,depth=4", "synthetic source: unknown option 'depth'"),
     ("synthetic:n=-2", "synthetic source: n=-2 is outside [1, 1000000]"),
     ("procedural:n=abc", "procedural source: n='abc' is not an integer"),
+    # random trees beside robots: tracebacks before 2026-11-29 (procedural robots read with
+    # random<d> features; collating two dims), or every robot file skipped (zoo)
+    ("synthetic:n=2 procedural:n=3", "source 'synthetic:n=2' makes random trees with "
+                                     "random<dim> features: it cannot share a dataset with "
+                                     "robots ('procedural:n=3')"),
+    ("zoo synthetic:n=2", "source 'synthetic:n=2' makes random trees"),
+    ("synthetic:n=2,dim=3 synthetic:n=2,dim=5", "sources 'synthetic:n=2,dim=3' and "
+                                                "'synthetic:n=2,dim=5' make random trees of "
+                                                "different dim"),
+    ("menagerie:", "source 'menagerie:' names no robot"),
+    ("dir:/no/such/folder", "/no/such/folder: no such folder"),
 ])
 def test_cli_bad_source_options_are_one_line(source, message, tmp_path, capsys):
-    assert main(["data", "--root", str(tmp_path / "cache"), "--source", source]) == 2
+    argv = [a for src in source.split() for a in ("--source", src)]
+    assert main(["data", "--root", str(tmp_path / "cache"), *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"robovae: {message}") and "\n" not in err, err
     assert not (tmp_path / "cache").exists()
+
+
+def test_sources_checked_without_torch():
+    """``robovae data`` checks its sources and feature set before it imports torch and PyG
+    (a typo refused in 0.4 s, not 5 s); building procedural robots' files needs neither."""
+    code = ("from robovae.data.sources import check_sources\n"
+            "from robovae.data.features import get_feature_set\n"
+            "import robovae.data.procedural\n"
+            "check_sources(['zoo', 'procedural:n=3', 'dir:.'])\n"
+            "get_feature_set('kinematic')\n"
+            "try:\n"
+            "    check_sources(['procedural:n=0'])\n"
+            "    result = None\n"
+            "except Exception as e:\n"
+            "    result = str(e)\n")
+    result, loaded, _ = in_fresh_python(code)
+    assert result == "robovae: procedural source: n=0 is outside [1, 10000000]"
+    assert loaded == []

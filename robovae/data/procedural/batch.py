@@ -9,6 +9,10 @@ mix (:func:`~robovae.data.procedural.robots.draw_class`), so a batch is the same
 (:func:`~robovae.data.mjcf.model_to_graph`), never writing or parsing XML. The graph equals
 the one of the MJCF file :func:`write_procedural` writes up to the 6 significant digits MuJoCo
 writes numbers with (``tests/data/test_procedural.py`` checks it).
+
+Importing this module does not import torch (nor does :mod:`robovae.data.procedural`): a
+batch's parsing, its files and its cache key need MuJoCo only, and the graphs' modules are
+imported where graphs are made.
 """
 
 from __future__ import annotations
@@ -21,11 +25,8 @@ from concurrent.futures import as_completed
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import torch
-
-from robovae.data.graph import RobotData
-from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural.robots import (
     CLASSES,
     ProceduralConfig,
@@ -38,6 +39,9 @@ from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
 from robovae.files import atomic_write
 from robovae.options import option_int, source_options
+
+if TYPE_CHECKING:
+    from robovae.data.graph import RobotData
 
 #: Most robots one ``procedural:`` source may ask for.
 MAX_ROBOTS = 10_000_000
@@ -114,6 +118,10 @@ def _graph_batch(jobs: list[tuple[int, str]], feature_set: str) -> list[dict]:
     (the thread count is restored after): on graphs of about 100 nodes and more its intra-op
     thread pool wakes for each tiny tensor operation, which costs milliseconds per graph when
     the cores are busy, as they are with one worker per core."""
+    import torch
+
+    from robovae.data.mjcf import model_to_graph
+
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -157,6 +165,10 @@ def _run(fn: Callable[..., list], jobs: list, args: tuple, workers: int, progres
 def procedural_graphs(source: ProceduralSource, feature_set: str = "paper34", jobs: int = 0,
                       progress: bool = False) -> list[RobotData]:
     """The graphs of a procedural batch, built in ``jobs`` processes (0: all cores)."""
+    import torch
+
+    from robovae.data.graph import RobotData
+
     workers = jobs or (os.cpu_count() or 1)
     fields = _run(_graph_batch, _jobs(source), (feature_set,), workers, progress, "robots")
     return [RobotData(**{k: torch.from_numpy(v) if hasattr(v, "dtype") else v
