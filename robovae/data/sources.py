@@ -116,7 +116,8 @@ def check_sources(sources: Sequence[str]) -> None:
     """Refuse a bad source string before anything is built, downloaded or imported (this
     module imports neither torch nor PyG: ``robovae data`` calls it before them): an unknown
     kind, a ``synthetic:`` or ``procedural:`` option that is not one, a ``dir:`` that is not a
-    folder, a ``menagerie:`` that names no robot; and ``synthetic:`` sources beside robot
+    folder, a ``dir:``, ``file:`` or bare path that is empty (it would read the working folder),
+    a ``menagerie:`` that names no robot; and ``synthetic:`` sources beside robot
     sources or of different ``dim`` (random trees carry ``random<dim>`` features: a robot's
     features, or another ``dim``'s, cannot share their dataset). Files are checked when they
     are read.
@@ -132,6 +133,9 @@ def check_sources(sources: Sequence[str]) -> None:
             dims.setdefault(parse_synthetic(arg)["dim"], src)
             continue
         robots.append(src)
+        if kind in ("dir", "file", "") and not arg.strip():  # not the working folder
+            raise RobovaeError(f"robovae: source '{src}' names no "
+                               f"{'folder' if kind == 'dir' else 'file or folder'}")
         if kind == "procedural":
             parse_procedural(arg)
         elif kind == "dir" and not Path(arg).expanduser().is_dir():

@@ -348,6 +348,9 @@ def test_cli_unknown_source_is_one_line(tmp_path, capsys):
                                                 "different dim"),
     ("menagerie:", "source 'menagerie:' names no robot"),
     ("dir:/no/such/folder", "/no/such/folder: no such folder"),
+    # read the working folder, recursively, before 2026-11-29
+    ("dir:", "source 'dir:' names no folder"),
+    ("file:", "source 'file:' names no file or folder"),
 ])
 def test_cli_bad_source_options_are_one_line(source, message, tmp_path, capsys):
     argv = [a for src in source.split() for a in ("--source", src)]

@@ -330,6 +330,9 @@ def test_class_mix() -> None:
     assert src.mix == {"quadruped": 0.25, "humanoid": 0.75}
     kinds = {g.name.split("_")[1] for g in procedural_graphs(src, jobs=1)}
     assert kinds == {"quadruped", "humanoid"}
+    # weights whose sum overflows a float are still a mix
+    assert parse_procedural("classes=arm*1e308+humanoid*1e308").mix == {"arm": 0.5,
+                                                                        "humanoid": 0.5}
 
 
 @pytest.mark.parametrize("arg, message", [
@@ -339,6 +342,11 @@ def test_class_mix() -> None:
     ("n=5,size=3", "unknown option 'size'"),
     ("n=5,classes=arm*x", "weight 'x' of class 'arm'"),
     ("n=5,classes=arm*0", "needs a positive weight"),
+    # accepted before 2026-11-29 (drawn as if the weight were ignored or the only one)
+    ("n=5,classes=arm*nan+humanoid", "weight of procedural class 'arm' must be a finite "
+                                     "number >= 0, got nan"),
+    ("n=5,classes=arm*inf", "weight of procedural class 'arm' must be a finite"),
+    ("n=5,classes=arm*-1+humanoid", "weight of procedural class 'arm' must be a finite"),
     ("n", "'n' is not key=value"),
 ])
 def test_bad_specs_give_one_line_errors(arg: str, message: str, tmp_path: Path,

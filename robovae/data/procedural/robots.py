@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -44,15 +46,25 @@ def default_mix() -> dict[str, float]:
 def check_classes(classes: Mapping[str, float] | Sequence[str]) -> dict[str, float]:
     """A class mix as ``{class: weight}`` (a list gets equal weights).
 
+    The weights are normalised to sum to 1 (divided by the largest first when their sum
+    overflows, so that any finite weights can be given).
+
     Raises:
-        ValueError: an unknown class, an empty mix or a weight that is negative or all zero.
+        ValueError: an unknown class, a weight that is not a finite number ``>= 0``, or no
+            positive weight.
     """
     mix = dict(classes) if isinstance(classes, Mapping) else {c: 1.0 for c in classes}
-    for c in mix:
+    for c, w in mix.items():
         if c not in CLASSES:
             raise ValueError(f"unknown procedural class '{c}' (known: {', '.join(CLASSES)})")
-    if not mix or any(w < 0 for w in mix.values()) or sum(mix.values()) <= 0:
+        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not 0 <= w < math.inf:
+            raise ValueError(f"the weight of procedural class '{c}' must be a finite number "
+                             f">= 0, got {w!r}")
+    if not mix or max(mix.values()) <= 0:
         raise ValueError("the procedural class mix needs a positive weight")
+    if not math.isfinite(sum(mix.values())):  # huge weights: the sum overflows
+        top = max(mix.values())
+        mix = {c: w / top for c, w in mix.items()}
     total = sum(mix.values())
     return {c: w / total for c, w in mix.items()}
 
