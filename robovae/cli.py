@@ -66,7 +66,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
     from robovae.options import check_generate, check_like  # before the heavy imports
 
     if args.like:
-        check_like(args.radius, args.n, args.redraws)
+        check_like(args.radius, args.n, args.redraws, args.seed)
         from robovae.design.variations import generate_like
 
         report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
@@ -77,7 +77,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
         print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
         return 0
     check_generate(args.n, args.temperature, args.node_temperature, args.batch_size, args.jobs,
-                   args.redraws)
+                   args.redraws, args.seed)
     from robovae.generate.pipeline import generate
 
     report = generate(args.ckpt, args.n, args.out, seed=args.seed,
@@ -114,7 +114,8 @@ def cmd_optimize(args: argparse.Namespace) -> int:
     from robovae.options import check_optimize
 
     check_optimize(args.task, args.budget, args.top, args.variance, args.population,  # before
-                   args.score_sets, args.restart_after, args.local_step, args.distinct)  # torch
+                   args.score_sets, args.restart_after, args.local_step, args.distinct,  # torch
+                   args.seed)
     from robovae.design.optimize import METHODS, optimize
     from robovae.design.score import GAIT_TASKS
 
@@ -195,7 +196,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     check_analyze(behaviour=args.behaviour, jobs=args.jobs, permutations=args.permutations,
                   quality=args.quality, procedural=args.procedural, max_samples=args.max_samples,
                   entropy_seconds=args.entropy_seconds, gait_rollouts=args.gait_rollouts,
-                  gait_search=args.gait_search)  # before the heavy imports (robovae.options)
+                  gait_search=args.gait_search, seed=args.seed)  # before the heavy imports
     if args.json:  # and before minutes of analysis whose figures it would lose
         writable_file(args.json, "report")
     from robovae.evaluate.analyze import analyze, format_report, save_json

@@ -17,6 +17,18 @@ class RobovaeError(Exception):
     """Base class of every error robovae raises on purpose."""
 
 
+#: The largest seed a command takes (a robot's or a run's streams derive from it).
+MAX_SEED = 2**31 - 1
+
+
+def check_seed(seed: object, option: str = "--seed") -> None:
+    """Refuse ``seed`` unless it is an integer in ``[0, MAX_SEED]``: one line ``robovae:
+    <option> must be an integer in [0, 2147483647], not <value>``."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise RobovaeError(f"robovae: {option} must be an integer in [0, {MAX_SEED}], "
+                           f"not {seed!r}")
+
+
 def check_count(option: str, value: object, least: int) -> None:
     """Refuse ``value`` unless it is an integer (not a bool) of at least ``least``: one line
     ``robovae: <option> must be an integer of at least <least>, not <value>``."""

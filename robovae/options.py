@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from robovae.errors import RobovaeError, check_count
+from robovae.errors import RobovaeError, check_count, check_seed
 
 __all__ = ["check_analyze", "check_generate", "check_interpolate", "check_like", "check_optimize",
            "option_int", "source_options"]
@@ -58,52 +58,60 @@ def option_int(where: str, name: str, text: str, lo: int, hi: int) -> int:
     return v
 
 
-def _check_redraws(redraws: object) -> None:
-    if isinstance(redraws, bool) or not isinstance(redraws, int) or redraws < 0:
-        raise RobovaeError(f"robovae: --redraws must be a non-negative integer, got {redraws!r}")
+#: Most robots on one latent path (``robovae interpolate --steps``): each is written,
+#: validated and drawn in one batch.
+MAX_STEPS = 10_000
+
+
+def _finite(name: str, value: object, least: float = 0.0) -> None:
+    """Refuse ``value`` unless it is a finite number (not a bool) ``>= least``."""
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or not least <= value < math.inf):
+        raise RobovaeError(f"robovae: {name} must be a finite number >= {least:g}, "
+                           f"got {value!r}")
 
 
 def check_generate(n: object, temperature: object = 1.0, node_temperature: object = None,
-                   batch_size: object = 256, jobs: object = 0, redraws: object = 4) -> None:
+                   batch_size: object = 256, jobs: object = 0, redraws: object = 4,
+                   seed: object = 0) -> None:
     """``robovae generate``: ``n`` and ``batch_size`` positive integers, ``jobs`` and
     ``redraws`` integers ``>= 0``, the temperatures finite and ``>= 0`` (``node_temperature``
-    may be None: the checkpoint's)."""
-    _check_redraws(redraws)
-    for name, t in (("--temperature", temperature), ("--node-temperature", node_temperature)):
-        if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))
-                              or not 0 <= t < math.inf):
-            raise RobovaeError(f"robovae: {name} must be a non-negative number, got {t!r}")
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise RobovaeError(f"robovae: the number of robots (-n) must be a positive integer, "
-                           f"not {n!r}")
+    may be None: the checkpoint's), ``seed`` in ``[0, MAX_SEED]``."""
+    check_count("-n", n, 1)
+    check_count("--redraws", redraws, 0)
+    _finite("--temperature", temperature)
+    if node_temperature is not None:
+        _finite("--node-temperature", node_temperature)
     check_count("--batch-size", batch_size, 1)
     check_count("--jobs", jobs, 0)
+    check_seed(seed)
 
 
-def check_like(radius: float, n: int, redraws: object = 4) -> None:
+def check_like(radius: object, n: object, redraws: object = 4, seed: object = 0) -> None:
     """``robovae generate --like``: ``radius`` finite and ``>= 0``, ``n >= 1``, ``redraws``
-    an integer ``>= 0``."""
-    if not (math.isfinite(radius) and radius >= 0):
-        raise RobovaeError(f"robovae: --radius must be a finite number >= 0, got {radius}")
-    if n < 1:
-        raise RobovaeError(f"robovae: -n must be >= 1, got {n}")
-    _check_redraws(redraws)
+    an integer ``>= 0``, ``seed`` in ``[0, MAX_SEED]``."""
+    _finite("--radius", radius)
+    check_count("-n", n, 1)
+    check_count("--redraws", redraws, 0)
+    check_seed(seed)
 
 
-def check_interpolate(steps: int) -> None:
-    """``robovae interpolate``: at least the two ends."""
-    if steps < 2:
-        raise RobovaeError(f"robovae: --steps must be >= 2 (the two ends), got {steps}")
+def check_interpolate(steps: object) -> None:
+    """``robovae interpolate``: at least the two ends, at most :data:`MAX_STEPS`."""
+    if isinstance(steps, bool) or not isinstance(steps, int) or not 2 <= steps <= MAX_STEPS:
+        raise RobovaeError(f"robovae: --steps must be an integer in [2, {MAX_STEPS}] (the two "
+                           f"ends and the robots between), got {steps!r}")
 
 
 def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
                    population: int | None = None, score_sets: int = 1,
                    restart_after: int | None = None, local_step: float | None = None,
-                   distinct: float | None = None) -> None:
+                   distinct: float | None = None, seed: object = 0) -> None:
     """``robovae optimize``: a known task (:data:`robovae.design.score.TASKS`), ``budget`` and
     ``top`` positive, ``variance`` in ``(0, 1]``, ``population`` (None: the ``cmaes``
     default) at least 2, ``score_sets`` and ``restart_after`` at least 1, ``local_step`` finite
-    and ``> 0``, ``distinct`` finite and ``>= 0`` (None: not given, the entry point's default)."""
+    and ``> 0``, ``distinct`` finite and ``>= 0`` (None: not given, the entry point's default),
+    ``seed`` in ``[0, MAX_SEED]``."""
     from robovae.design.score import TASKS  # MuJoCo only
 
     if task not in TASKS:
@@ -124,14 +132,16 @@ def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
         raise RobovaeError(f"robovae: --local-step must be > 0, got {local_step}")
     if distinct is not None and not (distinct >= 0 and math.isfinite(distinct)):
         raise RobovaeError(f"robovae: --distinct must be >= 0, got {distinct}")
+    check_seed(seed)
 
 
 def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,
-                  gait_rollouts: int = 64, gait_search: str = "random", **counts: int) -> None:
+                  gait_rollouts: int = 64, gait_search: str = "random", seed: object = 0,
+                  **counts: int) -> None:
     """``robovae analyze``: every count of ``counts`` (``behaviour``, ``jobs``, …) an integer
     ``>= 0``, ``max_samples`` (None: all) and ``gait_rollouts`` at least 1, ``entropy_seconds``
     positive and finite, ``gait_search`` one of
-    :data:`robovae.evaluate.quality.gait_search.GAIT_SEARCHES`."""
+    :data:`robovae.evaluate.quality.gait_search.GAIT_SEARCHES`, ``seed`` in ``[0, MAX_SEED]``."""
     from robovae.evaluate.quality.gait_search import GAIT_SEARCHES  # MuJoCo only
 
     for name, k in counts.items():
@@ -145,3 +155,4 @@ def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,
     if gait_search not in GAIT_SEARCHES:
         raise RobovaeError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
                            f"not {gait_search!r}")
+    check_seed(seed)

@@ -110,8 +110,9 @@ def test_analyze_counts_are_checked_first(option, value, least, tmp_path, capsys
 
 
 def test_option_mistakes_are_refused_before_torch_is_imported(tmp_path) -> None:
-    """A mistyped option of generate, generate --like, interpolate, optimize or analyze is
-    refused by robovae.options before the command imports torch, PyG and Lightning (5-9 s)."""
+    """A mistyped option of generate, generate --like, interpolate, optimize, analyze or gait
+    is refused by robovae.options before the command imports torch, PyG and Lightning (5-9 s),
+    and before anything is written."""
     robot = str(dict(zoo_files()[0])["gym_hopper"])
     ck, out = str(tmp_path / "none.ckpt"), str(tmp_path / "out")
     cases = [["generate", "--ckpt", ck, "-n", "-5", "--out", out],
@@ -120,11 +121,22 @@ def test_option_mistakes_are_refused_before_torch_is_imported(tmp_path) -> None:
              ["optimize", "--ckpt", ck, "--task", "fly", "--budget", "2", "--out", out],
              ["optimize", "--ckpt", ck, "--task", "walk", "--budget", "2", "--distinct", "-1",
               "--out", out],
-             ["analyze", "--ckpt", ck, "--entropy-seconds", "0"]]
+             ["analyze", "--ckpt", ck, "--entropy-seconds", "0"],
+             # a negative seed: tracebacks after a half-made folder before 2026-11-29
+             ["generate", "--ckpt", ck, "-n", "2", "--seed", "-1", "--out", out],
+             ["generate", "--ckpt", ck, "--like", robot, "--seed", "-1", "--out", out],
+             ["optimize", "--ckpt", ck, "--task", "walk", "--budget", "2", "--seed", "-1",
+              "--out", out],
+             ["analyze", "--ckpt", ck, "--seed", "2147483648"],
+             ["gait", robot, "--seed", "-1", "--out", out],
+             # an allocation of 26 GB and a traceback before 2026-11-29
+             ["interpolate", robot, robot, "--ckpt", ck, "--steps", "100000000", "--out", out]]
     codes, loaded, err = in_fresh_python("from robovae.cli import main\n"
                                          f"result = [main(argv) for argv in {cases!r}]")
     assert codes == [2] * len(cases) and loaded == []
     lines = err.strip().splitlines()
     assert len(lines) == len(cases) and all(line.startswith("robovae: ") for line in lines)
-    assert "-n) must be a positive integer" in lines[0] and "--distinct" in lines[4]
+    assert "-n must be an integer of at least 1, not -5" in lines[0] and "--distinct" in lines[4]
+    assert all("--seed must be an integer in [0, 2147483647]" in line for line in lines[6:11])
+    assert "--steps must be an integer in [2, 10000]" in lines[11]
     assert list(tmp_path.iterdir()) == []

@@ -40,7 +40,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from robovae.data.workers import process_pool
-from robovae.errors import RobovaeError, check_count
+from robovae.errors import RobovaeError, check_count, check_seed
 from robovae.files import atomic_json, writable
 
 __all__ = ["GAIT_FILE", "tune_gaits"]
@@ -143,6 +143,7 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
     check_count("--refine", refine, 16)
     check_count("--starts", starts, 1)
     check_count("--hold", hold, 1)
+    check_seed(seed)
     if not noise >= 0:
         raise RobovaeError(f"robovae: --noise must be 0 or more, not {noise!r}")
     files = [Path(p) for p in paths]

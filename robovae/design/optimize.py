@@ -399,7 +399,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
             > 0, ``distinct`` < 0, bad checkpoint, ``out`` not usable.
     """
     check_optimize(task, budget, top, variance, population, score_sets, restart_after,
-                   local_step, distinct)
+                   local_step, distinct, seed)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")

@@ -139,7 +139,7 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
             ``out`` holds robots of another run (unless ``overwrite``). RobotFileError:
             ``robot`` is not a robot.
     """
-    check_like(radius, n, redraws)
+    check_like(radius, n, redraws, seed)
     start = time.perf_counter()
     model = own_model(model)  # decoded in float64: never the caller's object
     encoded = encode_file(model, robot)  # refuses a bad file before anything is written

@@ -216,7 +216,7 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
     check_analyze(behaviour=behaviour, jobs=jobs, permutations=permutations, quality=quality,
                   procedural=procedural, max_samples=max_samples,
                   entropy_seconds=entropy_seconds, gait_rollouts=gait_rollouts,
-                  gait_search=gait_search)
+                  gait_search=gait_search, seed=seed)
     if sheets is not None:  # before minutes of work, not after
         writable(sheets, "contact sheets", make=False)  # contact_sheets makes it
     files = sample_files(samples) if samples is not None else []  # checked first

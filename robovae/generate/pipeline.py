@@ -241,7 +241,7 @@ def generate(
     """
     if prior is not None and prior not in PRIORS:
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")
-    check_generate(n, temperature, node_temperature, batch_size, jobs, redraws)
+    check_generate(n, temperature, node_temperature, batch_size, jobs, redraws, seed)
     start = time.perf_counter()
     model = own_model(model)
     if prior is not None:

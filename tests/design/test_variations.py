@@ -125,7 +125,7 @@ def test_like_metrics_compare_each_variation_with_the_reconstruction():
 
 @pytest.mark.parametrize("extra, message", [
     (["--radius", "-1"], "--radius must be a finite number >= 0"),
-    (["-n", "0"], "-n must be >= 1"),
+    (["-n", "0"], "-n must be an integer of at least 1"),
 ])
 def test_like_refuses_bad_numbers(trained_nodes, files, tmp_path, capsys, extra, message):
     _, _, ckpt = trained_nodes
@@ -186,7 +186,7 @@ def test_interpolate_refuses_bad_input(trained_nodes, files, tmp_path, capsys, c
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("robovae: ")
-    assert {"steps": "--steps must be >= 2", "junk": "junk.xml",
+    assert {"steps": "--steps must be an integer in [2, 10000]", "junk": "junk.xml",
             "out": "not empty"}[case] in err
     if case == "out":
         assert [p.name for p in out.iterdir()] == ["mine.txt"]

@@ -145,7 +145,7 @@ def test_the_checkpoints_node_temperature_is_the_default(trained_nodes, tmp_path
 @pytest.mark.parametrize("arg", [dict(node_temperature=-0.5), dict(temperature=-1.0),
                                  dict(temperature=float("nan"))])
 def test_a_negative_temperature_is_refused_before_writing(trained, tmp_path, arg):
-    with pytest.raises(RobovaeError, match="temperature must be a non-negative number"):
+    with pytest.raises(RobovaeError, match="temperature must be a finite number >= 0"):
         generate(trained[2], 2, tmp_path / "gen", progress=False, **arg)
     assert not (tmp_path / "gen").exists()
 
@@ -220,8 +220,10 @@ def test_generate_batch_size_and_jobs_are_checked(trained, tmp_path):
 def test_generate_n_must_be_a_positive_integer(trained, tmp_path):
     _, _, ckpt = trained
     for n in (-5, 0, 1.0, True):
-        with pytest.raises(RobovaeError, match="positive integer"):
+        with pytest.raises(RobovaeError, match="-n must be an integer of at least 1"):
             generate(ckpt, n, tmp_path / "g", progress=False)
+    with pytest.raises(RobovaeError, match="--seed must be an integer in"):
+        generate(ckpt, 3, tmp_path / "g", progress=False, seed=-1)
     for r in (-1, 1.5):
         with pytest.raises(RobovaeError, match="redraws"):
             generate(ckpt, 3, tmp_path / "g", progress=False, redraws=r)

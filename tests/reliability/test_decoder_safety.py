@@ -185,5 +185,5 @@ def test_cli_generate_with_absurd_temperatures(trained, tmp_path, capsys):
     assert main([*args, "--temperature", "nan", "--out", str(tmp_path / "nan")]) == 2
     err = capsys.readouterr().err  # (the progress bar shares stderr)
     assert "Traceback" not in err
-    assert "robovae: --temperature must be a non-negative number, got nan" in err
+    assert "robovae: --temperature must be a finite number >= 0, got nan" in err
     assert not (tmp_path / "nan").exists()  # refused before anything is written
