@@ -17,6 +17,11 @@ class RobovaeError(Exception):
     """Base class of every error robovae raises on purpose."""
 
 
+class SettingsError(RobovaeError, ValueError):
+    """A setting out of its range (:func:`robovae.settings.check_settings`): a one-line
+    :class:`RobovaeError`, and the ``ValueError`` Python raises for a bad argument."""
+
+
 #: The largest seed a command takes (a robot's or a run's streams derive from it).
 MAX_SEED = 2**31 - 1
 

@@ -12,11 +12,14 @@ negative ``beta`` or ``lr`` trains without complaint). Importable without torch.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TypeGuard
 
-__all__ = ["FEATURE_SET", "Rule", "check_settings", "choice", "integer", "number"]
+from robovae.errors import SettingsError
+
+__all__ = ["FEATURE_SET", "FINITE", "Rule", "check_settings", "choice", "integer", "number"]
 
 
 @dataclass(frozen=True)
@@ -37,10 +40,14 @@ def _real(v: object) -> TypeGuard[float]:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
+#: Any finite number (a reward weight may be negative).
+FINITE = Rule(_real, "a finite number")
+
+
 def integer(least: int) -> Rule:
-    """An integer (not a bool) ``>= least``."""
-    return Rule(lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= least,
-                f"an integer >= {least}")
+    """An integer (not a bool; NumPy's integers count) ``>= least``."""
+    return Rule(lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool)
+                and int(v) >= least, f"an integer >= {least}")
 
 
 def number(low: float, high: float = math.inf, *, low_open: bool = False,
@@ -83,10 +90,10 @@ def check_settings(section: str, **settings: tuple[object, Rule]) -> None:
     """Refuse every setting whose value breaks its rule, ``name=(value, rule)``.
 
     Raises:
-        ValueError: one line, ``robovae: <section>.<name> must be <want>, got <value>`` for
-            each bad setting, joined by ``;``.
+        SettingsError: (a ``ValueError``) one line, ``robovae: <section>.<name> must be
+            <want>, got <value>`` for each bad setting, joined by ``;``.
     """
     bad = [f"{section}.{name} must be {rule.want}, got {value!r}"
            for name, (value, rule) in settings.items() if not rule.test(value)]
     if bad:
-        raise ValueError("robovae: " + "; ".join(bad))
+        raise SettingsError("robovae: " + "; ".join(bad))

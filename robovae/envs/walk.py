@@ -82,6 +82,7 @@ from robovae.evaluate.camera import robot_bounds
 from robovae.evaluate.quality.locomotion import actuated_base
 from robovae.evaluate.quality.stage import rest_pose
 from robovae.evaluate.scene import add_floor, has_floor
+from robovae.settings import FINITE, check_settings, integer, number
 
 __all__ = ["ROOT_DIM", "Layout", "WalkEnv", "walk_scene"]
 
@@ -252,13 +253,13 @@ class WalkEnv(MujocoEnv):
                  max_tilt: float = 60.0, terminate_when_unhealthy: bool = True,
                  reset_noise_scale: float = 0.05, free_base: bool = True,
                  render_mode: str | None = None, width: int = 480, height: int = 480) -> None:
-        if int(frame_skip) < 1 or not 0.0 <= max_tilt <= 180.0 or reset_noise_scale < 0:
-            raise RobovaeError(f"robovae: WalkEnv needs frame_skip >= 1, 0 <= max_tilt <= 180 "
-                               f"and reset_noise_scale >= 0, got {frame_skip}, {max_tilt}, "
-                               f"{reset_noise_scale}")
-        if int(width) < 1 or int(height) < 1:
-            raise RobovaeError(f"robovae: WalkEnv needs a render size of at least 1 x 1 pixels, "
-                               f"got {width} x {height}")
+        check_settings(
+            "WalkEnv", frame_skip=(frame_skip, integer(1)),
+            forward_reward_weight=(forward_reward_weight, FINITE),
+            healthy_reward=(healthy_reward, FINITE), ctrl_cost_weight=(ctrl_cost_weight, number(0)),
+            min_height_ratio=(min_height_ratio, number(0)), max_tilt=(max_tilt, number(0, 180)),
+            reset_noise_scale=(reset_noise_scale, number(0)), width=(width, integer(1)),
+            height=(height, integer(1)))
         self.robot_path = Path(robot).resolve()
         self.spec_, self.scene = walk_scene(self.robot_path, free_base=free_base)
         model = self.scene.model

@@ -166,14 +166,25 @@ def test_bad_robots_raise_one_line(tmp_path):
 
 
 @pytest.mark.parametrize("kw, match", [
-    ({"frame_skip": 0}, "frame_skip >= 1"), ({"max_tilt": 200.0}, "max_tilt <= 180"),
-    ({"reset_noise_scale": -0.1}, "reset_noise_scale >= 0"),
-    ({"width": -5, "render_mode": "rgb_array"}, "at least 1 x 1 pixels, got -5 x 480"),
+    ({"frame_skip": 0}, r"WalkEnv\.frame_skip must be an integer >= 1, got 0"),
+    ({"max_tilt": 200.0}, r"max_tilt must be a number in \[0, 180\], got 200"),
+    ({"reset_noise_scale": -0.1}, "reset_noise_scale must be a number >= 0"),
+    ({"width": -5, "render_mode": "rgb_array"}, "width must be an integer >= 1, got -5"),
+    # accepted before 2026-11-29: NaN rewards, a frame skip of 2.5 taken as 2
+    ({"ctrl_cost_weight": float("nan")}, "ctrl_cost_weight must be a number >= 0, got nan"),
+    ({"healthy_reward": float("inf")}, "healthy_reward must be a finite number, got inf"),
+    ({"frame_skip": 2.5}, "frame_skip must be an integer >= 1, got 2.5"),
 ])
 def test_bad_settings_raise_one_line(robots, kw, match):
     with pytest.raises(RobovaeError, match=match) as e:
         gymnasium.make("robovae/Walk-v0", robot=robots[0], **kw)
-    assert "\n" not in str(e.value)
+    assert "\n" not in str(e.value) and isinstance(e.value, ValueError)
+
+
+def test_settings_take_numpy_integers(robots):
+    env = WalkEnv(robots[0], frame_skip=np.int64(2), forward_reward_weight=-1.0)
+    assert env.frame_skip == 2
+    env.close()
 
 
 def test_render_rgb_array(robots):
