@@ -30,7 +30,7 @@ def check_seed(seed: object, option: str = "--seed") -> None:
     """Refuse ``seed`` unless it is an integer in ``[0, MAX_SEED]``: one line ``robovae:
     <option> must be an integer in [0, 2147483647], not <value>``."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
-        raise RobovaeError(f"robovae: {option} must be an integer in [0, {MAX_SEED}], "
+        raise SettingsError(f"robovae: {option} must be an integer in [0, {MAX_SEED}], "
                            f"not {seed!r}")
 
 
@@ -38,7 +38,7 @@ def check_count(option: str, value: object, least: int) -> None:
     """Refuse ``value`` unless it is an integer (not a bool) of at least ``least``: one line
     ``robovae: <option> must be an integer of at least <least>, not <value>``."""
     if isinstance(value, bool) or not isinstance(value, int) or value < least:
-        raise RobovaeError(f"robovae: {option} must be an integer of at least {least}, "
+        raise SettingsError(f"robovae: {option} must be an integer of at least {least}, "
                            f"not {value!r}")
 
 

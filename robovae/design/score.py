@@ -52,6 +52,7 @@ import mujoco
 import numpy as np
 
 from robovae.data.loading import quiet_forward
+from robovae.errors import RobovaeError, check_seed
 from robovae.evaluate.quality.locomotion import (
     GaitResult,
     GaitTrials,
@@ -229,7 +230,11 @@ TASKS: dict[str, Callable[..., dict]] = {"walk": walk_score, "step": step_score,
 def score_robot(path: str | os.PathLike, task: str, seed: int = 0) -> dict:
     """``TASKS[task](path, seed)``; a robot the task cannot use (a file that does not load, no
     actuators, a failing measure) scores 0 with ``error`` set to one line. Never raises for a
-    bad robot; raises ``KeyError`` for an unknown task."""
+    bad robot; raises ``RobovaeError`` (one line) for an unknown task or a ``seed`` out of
+    ``[0, 2**31 - 1]``."""
+    if task not in TASKS:
+        raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
+    check_seed(seed, "score seed")
     fn = TASKS[task]
     try:
         out = fn(Path(path), seed=seed)

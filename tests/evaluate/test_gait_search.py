@@ -51,10 +51,28 @@ def test_a_robot_without_actuators_has_no_gait_to_search() -> None:
 
 
 @pytest.mark.parametrize("bad", [{"rollouts": 0}, {"refine": -1}, {"population": 1},
-                                 {"step": 0.0}])
+                                 {"step": 0.0}, {"frequency": (1.0, 1.0)},
+                                 {"frequency": (0.0, 2.0)}, {"frequency": (1.0, math.inf)},
+                                 {"seed": -1}])
 def test_bad_search_settings_are_refused(bad: dict) -> None:
-    with pytest.raises(ValueError, match="searched_gait"):
+    with pytest.raises(ValueError, match="searched_gait|gait seed"):
         searched_gait(procedural_spec(2, "quadruped"), **{**FAST, **bad})
+
+
+@pytest.mark.parametrize("bad, message", [
+    # each scored 0.0 without a word, or a NumPy traceback, until 2026-11-29
+    ({"rollouts": 0}, "gait.rollouts must be an integer >= 1, got 0"),
+    ({"seconds": 0.0}, "GaitTrials.seconds must be a number > 0, got 0.0"),
+    ({"seconds": math.nan}, "GaitTrials.seconds must be a number > 0, got nan"),
+    ({"seed": -1}, r"gait seed must be an integer in \[0, 2147483647\], not -1"),
+    ({"frequency": (3.0, 0.5)}, "gait.frequency must be a range"),
+    ({"settle": 1.0}, r"GaitTrials.settle must be a number in \[0, 1\)"),
+    ({"max_tilt": -5.0}, "GaitTrials.max_tilt must be a number in"),
+])
+def test_bad_gait_settings_are_refused(bad: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message) as e:
+        gait(procedural_spec(2, "quadruped"), **{"rollouts": 2, "seconds": 0.5, **bad})
+    assert "\n" not in str(e.value)
 
 
 def test_a_budget_is_spent_by_random_gaits_or_by_a_quarter_of_them_tuned() -> None:
@@ -109,7 +127,7 @@ def test_gaits_held_and_from_noisy_starts_score_the_median_over_the_starts() -> 
     again = GaitTrials(robot, seconds=2.0, hold=5)
     again.perturb(qpos, qvel, 3, 0.05, seed=0)
     assert np.array_equal(again.starts, held.starts)
-    with pytest.raises(ValueError, match="hold must be at least 1"):
+    with pytest.raises(ValueError, match="hold must be an integer >= 1"):
         GaitTrials(robot, hold=0)
     with pytest.raises(ValueError, match="count must be at least 1"):
         held.perturb(qpos, qvel, 0, 0.05, seed=0)

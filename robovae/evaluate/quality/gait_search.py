@@ -32,8 +32,16 @@ from typing import Any
 
 import numpy as np
 
-from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, gait, random_gaits
+from robovae.errors import check_seed
+from robovae.evaluate.quality.locomotion import (
+    FREQUENCIES,
+    GaitResult,
+    GaitTrials,
+    gait,
+    random_gaits,
+)
 from robovae.evaluate.quality.stage import Robot
+from robovae.settings import Rule, check_settings, integer, number
 
 __all__ = ["GAIT_SEARCHES", "budget_gait", "searched_gait", "trials_search"]
 
@@ -56,19 +64,29 @@ def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: 
     parameters' units (amplitude, turns of phase, share of the frequency range, offset).
 
     Raises:
-        ValueError: ``rollouts`` below 1, ``refine`` below 0, ``population`` below 2 or
-            ``step`` not > 0.
+        SettingsError: (a ``ValueError``) ``rollouts`` below 1, ``refine`` below 0,
+            ``population`` below 2, ``step`` not > 0, a ``seed`` out of ``[0, 2**31 - 1]``, a
+            ``frequency`` range that is not ``0 < low < high`` (finite), or a setting of
+            :class:`~robovae.evaluate.quality.locomotion.GaitTrials` out of range.
         RobovaeError: a model without a floor; RobotFileError: a file that does not load.
     """
-    _check(rollouts, refine, population, step)
+    _check(rollouts, refine, population, step, seed, frequency)
     return trials_search(GaitTrials(robot, seconds, settle, max_steps, max_tilt), rollouts,
                          refine, seed, frequency, population, step)
 
 
-def _check(rollouts: int, refine: int, population: int, step: float) -> None:
-    if rollouts < 1 or refine < 0 or population < 2 or not step > 0:
-        raise ValueError(f"searched_gait: rollouts ({rollouts}) must be >= 1, refine "
-                         f"({refine}) >= 0, population ({population}) >= 2, step ({step}) > 0")
+#: The search's frequency range: as a random gait's, and not one frequency (its CMA-ES
+#: searches a share of the range).
+_FREQUENCY_SPAN = Rule(lambda v: FREQUENCIES.test(v) and v[0] < v[1],  # type: ignore[index]
+                       "a range (low, high) in Hz with 0 < low < high")
+
+
+def _check(rollouts: int, refine: int, population: int, step: float, seed: int,
+           frequency: tuple[float, float]) -> None:
+    check_settings("searched_gait", rollouts=(rollouts, integer(1)), refine=(refine, integer(0)),
+                   population=(population, integer(2)), step=(step, number(0, low_open=True)),
+                   frequency=(frequency, _FREQUENCY_SPAN))
+    check_seed(seed, "gait seed")
 
 
 def trials_search(trials: GaitTrials, rollouts: int = 16, refine: int = 496, seed: int = 0,
@@ -81,7 +99,7 @@ def trials_search(trials: GaitTrials, rollouts: int = 16, refine: int = 496, see
     Raises:
         ValueError: as :func:`searched_gait`.
     """
-    _check(rollouts, refine, population, step)
+    _check(rollouts, refine, population, step, seed, frequency)
     nu = trials.model.nu
     generations = refine // population
     if nu == 0 or trials.actuated_base:

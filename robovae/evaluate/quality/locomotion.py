@@ -59,7 +59,9 @@ import numpy as np
 from mujoco import rollout
 
 from robovae.data.loading import capture_mujoco_warnings, quiet_forward
+from robovae.errors import check_seed
 from robovae.evaluate.quality.stage import Robot, rest_pose, stage
+from robovae.settings import Rule, check_settings, integer, number
 
 __all__ = ["FALL_SAMPLE_DT", "MAX_RISE", "GaitResult", "GaitTrials", "actuated_base",
            "continuous_actuators", "gait", "gait_speed", "random_gaits", "sinusoid_controls"]
@@ -195,8 +197,10 @@ class GaitTrials:
 
     def __init__(self, robot: Robot, seconds: float = 4.0, settle: float = 0.25,
                  max_steps: int = 2_000, max_tilt: float | None = None, hold: int = 1) -> None:
-        if hold < 1:
-            raise ValueError(f"GaitTrials: hold must be at least 1, not {hold}")
+        check_settings("GaitTrials", seconds=(seconds, number(0, low_open=True)),
+                       settle=(settle, number(0, 1, high_open=True)),
+                       max_steps=(max_steps, integer(1)),
+                       max_tilt=(max_tilt, number(0, 180).or_none()), hold=(hold, integer(1)))
         self.hold = int(hold)
         st = stage(robot)
         self.model, self.root, self.extent, self.floor_z = st.model, st.root, st.extent, \
@@ -334,11 +338,15 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     than ``seconds``; ``GaitResult.seconds`` says how long and the speed uses it).
 
     Raises:
-        RobovaeError: a model without a floor; RobotFileError: a file that does not load.
+        RobovaeError: a model without a floor; RobotFileError: a file that does not load;
+        SettingsError: ``rollouts`` below 1, a ``seed`` out of ``[0, 2**31 - 1]``, a
+        ``frequency`` range that is not ``0 < low <= high`` (finite), or a setting of
+        :class:`GaitTrials` out of range (``seconds`` not > 0, ``settle`` outside ``[0, 1)``).
     """
+    check_gait_settings(rollouts, seed, frequency)
     trials = GaitTrials(robot, seconds, settle, max_steps, max_tilt)
     nu = trials.model.nu
-    if nu == 0 or rollouts <= 0 or trials.actuated_base:
+    if nu == 0 or trials.actuated_base:
         return trials.nothing(rollouts)
     amp, phase, freq, offset = random_gaits(np.random.default_rng(seed), rollouts, nu,
                                             frequency, trials.continuous)
@@ -347,6 +355,20 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     power = trials.power(best_run) if speeds[best] > 0 else 0.0
     return trials.result(float(speeds[best]), float(freq[best]), amp[best], phase[best],
                          offset[best], bad, rollouts, power)
+
+
+#: A gait search's frequency range in Hz: ``(low, high)``, finite, ``0 < low <= high``.
+FREQUENCIES = Rule(lambda v: isinstance(v, (tuple, list)) and len(v) == 2
+                   and all(isinstance(f, (int, float)) and math.isfinite(f) for f in v)
+                   and 0 < v[0] <= v[1], "a range (low, high) in Hz with 0 < low <= high")
+
+
+def check_gait_settings(rollouts: object, seed: object,
+                        frequency: tuple[float, float]) -> None:
+    """Refuse a gait search's ``rollouts`` below 1, a ``seed`` out of range or a ``frequency``
+    range that is not ``0 < low <= high`` (finite), in one line (``SettingsError``)."""
+    check_settings("gait", rollouts=(rollouts, integer(1)), frequency=(frequency, FREQUENCIES))
+    check_seed(seed, "gait seed")
 
 
 def random_gaits(rng: np.random.Generator, rollouts: int, nu: int,
