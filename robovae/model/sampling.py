@@ -19,8 +19,10 @@ import torch
 from torch import Tensor
 
 from robovae.data.graph import RobotData
+from robovae.errors import SettingsError, check_seed
 from robovae.model.latent_mixture import LatentMixture, principal_basis
 from robovae.model.prior import latent, latent_rng, node_noise
+from robovae.settings import check_settings, integer, number
 
 __all__ = ["PriorSampling"]
 
@@ -49,7 +51,19 @@ class PriorSampling:
         (:meth:`prior_latent` at ``temperature``), ``node_noise`` ``[B, max_nodes,
         node_latent_dim]`` (:func:`~robovae.model.prior.node_noise` at
         :meth:`node_temperature_for`), both in the model's dtype; robot ``i`` draws the same
-        values in any batch."""
+        values in any batch.
+
+        Raises:
+            SettingsError: ``seed`` out of ``[0, 2**31 - 1]``, a negative index, a temperature
+                that is not a finite number ``>= 0``.
+        """
+        check_seed(seed, "sample_prior seed")
+        check_settings("sample_prior", temperature=(temperature, number(0)),
+                       node_temperature=(node_temperature, number(0).or_none()))
+        bad = [i for i in indices if not integer(0).test(i)][:1]
+        if bad or not len(indices):
+            raise SettingsError(f"robovae: sample_prior.indices must be a non-empty sequence of "
+                                f"integers >= 0, got {'no index' if not bad else bad[0]!r}")
         hp = self.hparams
         t_w = self.node_temperature_for(temperature, node_temperature)
         z = torch.stack([self.prior_latent(seed, int(i), temperature) for i in indices])
@@ -100,7 +114,15 @@ class PriorSampling:
                node_temperature: float | None = None) -> list[RobotData]:
         """Decode ``n`` robots of the sampling prior at ``temperature`` (node latents at
         :meth:`node_temperature_for`): those of a generation run (:meth:`sample_prior`) whose
-        seed is drawn from ``generator``."""
+        seed is drawn from ``generator``.
+
+        Raises:
+            SettingsError: ``n`` not an integer ``>= 0`` (0: no robot), a temperature as
+                :meth:`sample_prior` refuses.
+        """
+        check_settings("sample", n=(n, integer(0)))
         seed = int(torch.randint(0, 2**31 - 1, (1,), generator=generator))
+        if n == 0:
+            return []
         z, noise = self.sample_prior(seed, range(n), temperature, node_temperature)
         return self.decode(z, node_noise=noise)  # type: ignore[attr-defined]

@@ -11,7 +11,7 @@ from mujoco import rollout
 
 from robovae.data.procedural import ProceduralConfig, procedural_spec
 from robovae.errors import RobovaeError
-from robovae.evaluate.quality import gait, gait_speed, stage, standing
+from robovae.evaluate.quality import anatomy, attachment, gait, gait_speed, stage, standing
 from robovae.evaluate.quality.locomotion import (
     actuated_base,
     continuous_actuators,
@@ -88,6 +88,30 @@ def test_standing_accepts_a_model_with_a_floor_and_leaves_it_unchanged() -> None
     assert (model.jnt_stiffness == stiffness).all() and model.nu == 12
     with pytest.raises(RobovaeError, match="no floor"):
         standing(procedural_spec(2, "quadruped").compile())
+
+
+@pytest.mark.parametrize("bad, message", [
+    # a verdict on nothing, a NaN verdict or a traceback until 2026-11-29
+    ({"seconds": -1.0}, "standing.seconds must be a number > 0, got -1.0"),
+    ({"seconds": math.nan}, "standing.seconds must be a number > 0, got nan"),
+    ({"stiffness": -1.0}, "standing.stiffness must be a number >= 0"),
+    ({"max_tilt": -5.0}, r"standing.max_tilt must be a number in \[0, 180\]"),
+    ({"max_steps": 0}, "standing.max_steps must be an integer >= 1, got 0"),
+])
+def test_standing_refuses_settings_out_of_range(bad: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message) as e:
+        standing(procedural_spec(1, "quadruped"), **bad)
+    assert "\n" not in str(e.value)
+
+
+def test_attachment_and_anatomy_refuse_settings_out_of_range() -> None:
+    """A negative or NaN gap judged every body attached until 2026-11-29."""
+    quad = procedural_spec(1, "quadruped")
+    for bad in ({"gap": -1.0}, {"gap": math.nan}, {"tolerance": -0.1}):
+        with pytest.raises(ValueError, match=f"attachment.{next(iter(bad))} must be a number"):
+            attachment(quad, **bad)
+    with pytest.raises(ValueError, match="anatomy.tolerance must be a number >= 0, got nan"):
+        anatomy(quad, tolerance=math.nan)
 
 
 def test_standing_skips_a_robot_without_a_free_root() -> None:

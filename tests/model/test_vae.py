@@ -4,6 +4,7 @@ the public API, and the Lightning CLI with its loggers."""
 from __future__ import annotations
 
 import csv
+import math
 import warnings
 from pathlib import Path
 
@@ -67,6 +68,19 @@ def test_public_api(trained):
     assert [s.num_nodes for s in samples] == [s.num_nodes for s in again]
     for s in samples:  # physical units, own columns only, finite
         assert torch.isfinite(s.x).all() and (s.x[~s.x_mask] == 0).all()
+    assert model.sample(0) == []
+    # tracebacks of torch.stack or NumPy, or accepted (a negative temperature), until 2026-11-29
+    for call, message in ((lambda: model.sample(-1), "sample.n must be an integer >= 0"),
+                          (lambda: model.sample(2, temperature=-1.0),
+                           "sample_prior.temperature must be a number >= 0"),
+                          (lambda: model.sample(2, node_temperature=math.nan),
+                           "sample_prior.node_temperature must be a number >= 0"),
+                          (lambda: model.sample_prior(-1, [0]), "sample_prior seed must be an"),
+                          (lambda: model.sample_prior(0, [3, -1]), "indices must be a non-empty "
+                                                                   "sequence of integers >= 0, "
+                                                                   "got -1")):
+        with pytest.raises(ValueError, match=message):
+            call()
 
 
 def test_node_latent_api(trained_nodes):

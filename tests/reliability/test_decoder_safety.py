@@ -172,7 +172,7 @@ def test_predict_step_at_a_huge_temperature(models):
     for d in out["graphs"]:
         _check_tree(d, model.hparams.max_nodes, model.hparams.max_depth)
     batch["temperature"] = torch.full((6,), float("inf"), dtype=torch.float64)
-    with pytest.raises(RobovaeError, match="finite"):
+    with pytest.raises(RobovaeError, match="temperature must be a number >= 0, got inf"):
         model.predict_step(batch, 0)
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from robovae.data.loading import quiet_forward, robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled, extent
+from robovae.settings import check_settings, number
 
 __all__ = ["AttachResult", "attachment"]
 
@@ -96,8 +97,10 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
     False skips the O(geoms²) overlap search).
 
     Raises:
-        RobotFileError: a file that does not load.
+        RobotFileError: a file that does not load; SettingsError: ``gap`` or ``tolerance``
+            not a finite number ``>= 0``.
     """
+    check_settings("attachment", gap=(gap, number(0)), tolerance=(tolerance, number(0)))
     model = compiled(robot)
     if isinstance(robot, Stage):
         data, root, size = robot.data, robot.root, robot.extent

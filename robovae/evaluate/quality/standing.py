@@ -59,6 +59,7 @@ from robovae.evaluate.quality.stage import (
     stage,
     unstable,
 )
+from robovae.settings import check_settings, integer, number
 
 _TRN_JOINT = int(mujoco.mjtTrn.mjTRN_JOINT)
 _GAIN_FIXED = int(mujoco.mjtGain.mjGAIN_FIXED)
@@ -253,8 +254,18 @@ def standing(robot: Robot, seconds: float = 3.0, stiffness: float = 10.0,
     (the same result as starting afresh).
 
     Raises:
-        RobovaeError: a model without a floor; RobotFileError: a file that does not load.
+        RobovaeError: a model without a floor; RobotFileError: a file that does not load;
+        SettingsError: a setting out of range (``seconds``, ``sample_dt`` and ``chunk_seconds``
+            not > 0, ``stiffness``, ``min_height`` or ``rest`` negative, ``max_tilt`` outside
+            ``[0, 180]``, ``max_steps`` below 1).
     """
+    check_settings("standing", seconds=(seconds, number(0, low_open=True)),
+                   stiffness=(stiffness, number(0)), min_height=(min_height, number(0)),
+                   max_tilt=(max_tilt, number(0, 180)),
+                   sample_dt=(sample_dt, number(0, low_open=True)),
+                   max_steps=(max_steps, integer(1)),
+                   chunk_seconds=(chunk_seconds, number(0, low_open=True)),
+                   rest=(rest, number(0)))
     if held is None:
         st = stage(robot)
         if not st.free:

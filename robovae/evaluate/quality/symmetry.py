@@ -30,6 +30,7 @@ import numpy as np
 
 from robovae.data.loading import robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled
+from robovae.settings import check_settings, number
 
 __all__ = ["Anatomy", "anatomy", "mirrored"]
 
@@ -92,8 +93,10 @@ def anatomy(robot: Robot, tolerance: float = 0.1) -> Anatomy:
     docstring).
 
     Raises:
-        RobotFileError: a file that does not load.
+        RobotFileError: a file that does not load; SettingsError: ``tolerance`` not a finite
+            number ``>= 0``.
     """
+    check_settings("anatomy", tolerance=(tolerance, number(0)))
     model = compiled(robot)
     if isinstance(robot, Stage):
         data = robot.data
