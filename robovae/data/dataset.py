@@ -29,6 +29,7 @@ from robovae.data.sources import resolve_sources
 from robovae.data.workers import process_pool
 from robovae.errors import RobotFileError, RobovaeError
 from robovae.files import writable
+from robovae.settings import check_settings, integer
 
 log = logging.getLogger("robovae")
 
@@ -94,10 +95,11 @@ class RobotDataset(InMemoryDataset):
 
     Args:
         root: cache folder (processed graphs and their build report).
-        sources: source strings (see :mod:`robovae.data.sources`), default ``["zoo"]``.
+        sources: source strings (see :mod:`robovae.data.sources`), default ``["zoo"]``; one
+            string is one source.
         feature_set: registry name (``paper34``, ``full``); synthetic sources force
             ``random<d>``.
-        jobs: worker processes for loading many files (``0``: all cores).
+        jobs: worker processes for loading many files (``0``: all cores; an integer >= 0).
         progress: show a progress bar while building.
         force_reload: rebuild even when a matching cache exists.
         transform: PyG transform applied on access.
@@ -117,7 +119,8 @@ class RobotDataset(InMemoryDataset):
         force_reload: bool = False,
         transform: Callable | None = None,
     ) -> None:
-        self.sources = list(sources)
+        check_settings("RobotDataset", jobs=(jobs, integer(0)))
+        self.sources = [sources] if isinstance(sources, str) else list(sources)
         self.jobs = jobs or (os.cpu_count() or 1)
         self.progress = progress
         root = Path(root)

@@ -116,15 +116,17 @@ def check_sources(sources: Sequence[str]) -> None:
     """Refuse a bad source string before anything is built, downloaded or imported (this
     module imports neither torch nor PyG: ``robovae data`` calls it before them): an unknown
     kind, a ``synthetic:`` or ``procedural:`` option that is not one, a ``dir:`` that is not a
-    folder, a ``dir:``, ``file:`` or bare path that is empty (it would read the working folder),
-    a ``menagerie:`` that names no robot; and ``synthetic:`` sources beside robot
+    folder, a ``dir:``, ``file:`` or bare path that is empty (it would read the working
+    folder), a ``menagerie:`` that names no robot; and ``synthetic:`` sources beside robot
     sources or of different ``dim`` (random trees carry ``random<dim>`` features: a robot's
-    features, or another ``dim``'s, cannot share their dataset). Files are checked when they
-    are read.
+    features, or another ``dim``'s, cannot share their dataset). One string is one source.
+    Files are checked when they are read.
 
     Raises:
         RobovaeError: one line naming the source.
     """
+    if isinstance(sources, str):  # one source, not one per character
+        sources = [sources]
     dims: dict[int, str] = {}  # the dim of each synthetic source -> its first source
     robots = []  # the other sources
     for src in sources:
@@ -161,6 +163,7 @@ def resolve_sources(sources: Sequence[str]) -> Resolved:
         RobovaeError: a bad source (:func:`check_sources`) or one that cannot be read (a
             Menagerie robot not found, a synthetic set that cannot hold an unseen tree).
     """
+    sources = [sources] if isinstance(sources, str) else sources
     check_sources(sources)
     out = Resolved()
     for src in sources:

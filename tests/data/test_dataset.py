@@ -131,6 +131,16 @@ def test_a_cache_folder_that_cannot_be_made_is_one_line(tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1 and (tmp_path / "file").read_text() == "keep"
 
 
+def test_one_source_string_is_one_source_and_jobs_are_checked(tmp_path):
+    """``RobotDataset(root, "procedural:n=3")``: one source (until 2026-11-29 each character was
+    a source: ``"zoo"`` read files ``z``, ``o``, ``o``); ``jobs`` an integer >= 0."""
+    ds = RobotDataset(tmp_path / "a", "procedural:n=3", progress=False)
+    assert ds.sources == ["procedural:n=3"] and len(ds) == 3
+    with pytest.raises(ValueError, match="RobotDataset.jobs must be an integer >= 0, got -1"):
+        RobotDataset(tmp_path / "b", ["procedural:n=3"], jobs=-1)
+    assert not (tmp_path / "b").exists()
+
+
 def test_datamodule_split_by_name_fits_normalizer_on_train(cache_root, menagerie_dir):
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
                          train_names=["go1", "a1"], test_names=["go2"], batch_size=2)
