@@ -218,11 +218,21 @@ class _Run:
         return ys
 
     def load(self) -> None:
-        """Continue from ``log.json`` (module docstring); refuses another run's log."""
+        """Continue from ``log.json`` (module docstring); refuses another run's log, and a file
+        that is not a log (damaged, or another program's) in one line."""
         path = self.out / LOG
         if not path.is_file():
             return
-        old = json.loads(path.read_text())
+        try:
+            old = json.loads(path.read_text())
+        except (UnicodeDecodeError, json.JSONDecodeError) as e:
+            raise RobovaeError(f"robovae: {path}: not an optimisation log ({e}); use another "
+                               "--out") from None
+        evaluations = old.get("evaluations") if isinstance(old, dict) else None
+        if not (isinstance(evaluations, dict) and isinstance(old.get("settings", {}), dict)
+                and all(isinstance(evaluations.get(m), list) for m in METHODS)):
+            raise RobovaeError(f"robovae: {path}: not an optimisation log (no settings and "
+                               f"evaluations of {', '.join(METHODS)}); use another --out")
         settings = dict(old.get("settings", {}))
         settings.setdefault("cma_population", self._default_population)
         if "score_seed" in settings:  # logs before score sets: one seed

@@ -319,6 +319,16 @@ def test_optimize_refuses_a_bad_checkpoint_and_another_runs_log(trained_nodes, t
     err = capsys.readouterr().err
     assert "log of another run (task differ)" in err and err.count("\n") == 1
     assert (out / "log.json").read_text() == before
+    # a damaged log or another program's file: tracebacks until 2026-11-29
+    for text, reason in ((before[:200], "Expecting"), ("", "Expecting value"),
+                         ("[1, 2]", "no settings and evaluations of cma, prior, procedural")):
+        (out / "log.json").write_text(text)
+        assert main(["optimize", "--ckpt", str(ckpt), "--task", "reach", "--budget", "2",
+                     "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"robovae: {out / 'log.json'}: not an optimisation log (")
+        assert reason in err and err.count("\n") == 1
+        assert (out / "log.json").read_text() == text
 
 
 def test_optimize_population_is_a_setting_of_the_run(trained_nodes, tmp_path, capsys):
