@@ -87,13 +87,16 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
     """
     writable(out, "robots")
     path = out / RUN
-    old = json.loads(path.read_text()) if path.is_file() else None
+    old = read_run(path) if path.is_file() else None
     has_robots = bool(read_manifest(out))
     if old == run or (old is None and not has_robots):
         if old is None:
             atomic_json(path, run, durable=False)
         return
     if not overwrite:
+        if isinstance(old, str):
+            raise RobovaeError(f"robovae: {path}: not a generation run's record ({old}); use "
+                               "another --out or --overwrite")
         keys = list(run) + [k for k in (old or {}) if k not in run]
         what = ", ".join(k for k in keys if old is None or old.get(k) != run.get(k))
         raise RobovaeError(f"robovae: {out}: holds robots of another run ({what or 'unknown'} "
@@ -106,16 +109,28 @@ def claim(out: Path, run: dict, overwrite: bool = False) -> None:
     atomic_json(path, run, durable=False)
 
 
+def read_run(path: Path) -> dict | str:
+    """A folder's ``run.json``, or why it is not one (damaged, or another program's)."""
+    try:
+        run = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        return str(e)
+    return run if isinstance(run, dict) else "not a JSON object"
+
+
 def read_manifest(out: Path) -> dict[int, dict]:
-    """Manifest records by robot index (a torn last line from a crash is ignored)."""
+    """Manifest records by robot index; a line that is not a record (a torn last line from a
+    crash, or damage) is ignored: its robot is made again."""
     records: dict[int, dict] = {}
     for path in sorted(out.glob("manifest*.jsonl")):  # manifest.jsonl + per-rank manifests
-        for line in path.read_text().splitlines():
+        for line in path.read_text(errors="replace").splitlines():
             try:
                 rec = json.loads(line)
             except json.JSONDecodeError:
                 continue
-            records[int(rec["index"])] = rec
+            index = rec.get("index") if isinstance(rec, dict) else None
+            if isinstance(index, int) and not isinstance(index, bool) and index >= 0:
+                records[index] = rec
     return records
 
 

@@ -18,7 +18,6 @@ spread over devices and processes (``robovae predict --config configs/generate.y
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -39,6 +38,7 @@ from robovae.generate.pipeline import (
     open_manifest,
     prior_name,
     read_manifest,
+    read_run,
     summarize,
     worker_pool,
     write_records,
@@ -123,7 +123,7 @@ class RobotWriter(BasePredictionWriter):
                 refused = e
         trainer.strategy.barrier()
         path = self.out / RUN
-        if not path.is_file() or json.loads(path.read_text()) != run:
+        if not path.is_file() or read_run(path) != run:
             raise refused or RobovaeError(f"robovae: {self.out}: holds robots of another run; "
                                           "use another output_dir")
         skip = sorted(read_manifest(self.out))

@@ -275,6 +275,28 @@ def test_a_folder_of_another_run_is_refused_unless_overwrite(trained, tmp_path):
     assert json.loads((out / RUN).read_text())["seed"] == 1
 
 
+def test_a_damaged_run_record_or_manifest_line_is_no_traceback(trained, tmp_path):
+    """A ``run.json`` cut short is refused in one line (a JSONDecodeError until 2026-11-29)
+    and replaced with ``overwrite``; a manifest line that is JSON but no record (a
+    TypeError) is skipped like a torn line: its robot is made again, the same."""
+    _, _, ckpt = trained
+    out = tmp_path / "gen"
+    generate(ckpt, 3, out, seed=0, validate=False, progress=False)
+    whole = (out / RUN).read_text()
+    (out / RUN).write_text(whole[:30])
+    with pytest.raises(RobovaeError, match="run.json: not a generation run's record") as e:
+        generate(ckpt, 3, out, seed=0, validate=False, progress=False)
+    assert "\n" not in str(e.value) and (out / RUN).read_text() == whole[:30]
+    generate(ckpt, 3, out, seed=0, validate=False, progress=False, overwrite=True)
+    assert (out / RUN).read_text() == whole
+    files = _files(out)
+    lines = (out / MANIFEST).read_text().splitlines()
+    (out / MANIFEST).write_text("\n".join(["[1]", '{"index": "x"}', *lines[1:]]) + "\n")
+    assert sorted(read_manifest(out)) == [1, 2]
+    report = generate(ckpt, 3, out, seed=0, validate=False, progress=False)
+    assert report.new == 1 and _files(out) == files
+
+
 def test_a_folder_written_by_another_writer_is_refused_unless_overwrite(trained, tmp_path):
     """Robots written before a writer change are not resumed as if they were this writer's
     (training is deterministic: the README main job re-run after an upgrade meets the same
