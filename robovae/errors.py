@@ -10,6 +10,7 @@ dataset builder print ``str(err)`` and go on with the other files.
 
 from __future__ import annotations
 
+import numbers
 import os
 
 
@@ -28,18 +29,20 @@ MAX_SEED = 2**31 - 1
 
 def check_seed(seed: object, option: str = "--seed") -> None:
     """Refuse ``seed`` unless it is an integer in ``[0, MAX_SEED]``: one line ``robovae:
-    <option> must be an integer in [0, 2147483647], not <value>``."""
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+    <option> must be an integer in [0, 2147483647], not <value>`` (NumPy's integers count)."""
+    if (isinstance(seed, bool) or not isinstance(seed, numbers.Integral)
+            or not 0 <= int(seed) <= MAX_SEED):
         raise SettingsError(f"robovae: {option} must be an integer in [0, {MAX_SEED}], "
-                           f"not {seed!r}")
+                            f"not {seed!r}")
 
 
 def check_count(option: str, value: object, least: int) -> None:
-    """Refuse ``value`` unless it is an integer (not a bool) of at least ``least``: one line
-    ``robovae: <option> must be an integer of at least <least>, not <value>``."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+    """Refuse ``value`` unless it is an integer (not a bool; NumPy's integers count) of at
+    least ``least``: one line ``robovae: <option> must be an integer of at least <least>, not
+    <value>``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < least:
         raise SettingsError(f"robovae: {option} must be an integer of at least {least}, "
-                           f"not {value!r}")
+                            f"not {value!r}")
 
 
 class RobotFileError(RobovaeError):

@@ -70,3 +70,19 @@ def test_the_data_module_refuses_bad_sources_when_built(tmp_path):
     with pytest.raises(RobovaeError, match="procedural source: n=0 is outside"):
         RobotDataModule(root=tmp_path / "cache", sources=["procedural:n=0"])
     assert not (tmp_path / "cache").exists()
+
+
+def test_counts_and_seeds_take_numpy_integers_only_as_integers():
+    import numpy as np
+
+    from robovae.errors import MAX_SEED, SettingsError, check_count, check_seed
+
+    check_count("-n", np.int64(3), 1)
+    check_seed(np.uint32(7))
+    check_seed(MAX_SEED)
+    for bad in (True, 2.0, -1, MAX_SEED + 1, np.int64(-2)):
+        with pytest.raises(SettingsError, match=r"--seed must be an integer in \[0, 2147483647\]"):
+            check_seed(bad)
+    for bad in (True, 3.0, np.float64(3), 0):
+        with pytest.raises(SettingsError, match="-n must be an integer of at least 1"):
+            check_count("-n", bad, 1)

@@ -52,6 +52,7 @@ falls at 60°: :func:`robovae.design.score.walk_score`).
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import mujoco
@@ -359,7 +360,7 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
 
 #: A gait search's frequency range in Hz: ``(low, high)``, finite, ``0 < low <= high``.
 FREQUENCIES = Rule(lambda v: isinstance(v, (tuple, list)) and len(v) == 2
-                   and all(isinstance(f, (int, float)) and math.isfinite(f) for f in v)
+                   and all(isinstance(f, numbers.Real) and math.isfinite(f) for f in v)
                    and 0 < v[0] <= v[1], "a range (low, high) in Hz with 0 < low <= high")
 
 
