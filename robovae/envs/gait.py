@@ -31,8 +31,9 @@ from typing import TYPE_CHECKING, cast
 import mujoco
 import numpy as np
 
-from robovae.errors import RobovaeError
+from robovae.errors import RobovaeError, SettingsError
 from robovae.evaluate.quality.locomotion import FALL_SAMPLE_DT
+from robovae.settings import check_settings, number
 
 if TYPE_CHECKING:
     import gymnasium
@@ -46,12 +47,27 @@ __all__ = ["GaitReplay", "SinusoidGait", "replay"]
 class SinusoidGait:
     """``a(t) = clip(offset + amplitude * sin(2 pi frequency t + phase), -1, 1)`` in normalised
     actions (module docstring): ``frequency`` in Hz, ``amplitude``, ``phase`` (rad) and
-    ``offset`` (None: 0) ``[nu]``."""
+    ``offset`` (None: 0) ``[nu]``.
+
+    Raises:
+        SettingsError: a ``frequency`` that is not a finite number ``>= 0``, or amplitudes,
+            phases and offsets that are not finite vectors of one length.
+    """
 
     frequency: float
     amplitude: np.ndarray
     phase: np.ndarray
     offset: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        check_settings("SinusoidGait", frequency=(self.frequency, number(0)))
+        parts = [self.amplitude, self.phase] + ([] if self.offset is None else [self.offset])
+        arrays = [np.asarray(a, dtype=float) for a in parts]
+        if not (all(a.ndim == 1 and len(a) == len(arrays[0]) for a in arrays)
+                and all(np.isfinite(a).all() for a in arrays)):
+            raise SettingsError("robovae: SinusoidGait: amplitude, phase and offset must be "
+                                "finite vectors of one length, got shapes "
+                                f"{', '.join(str(a.shape) for a in arrays)}")
 
     def __call__(self, t: float) -> np.ndarray:
         """The action at time ``t`` (s), ``[nu]`` in ``[-1, 1]``."""
@@ -79,8 +95,11 @@ class SinusoidGait:
         if freq is None or not amp or not len(amp) == len(phase) == len(offset):
             raise RobovaeError(f"robovae: {path}: no gait (the robot scored 0, or amplitude, "
                                "phase and offset differ in length)")
-        return cls(float(freq), np.asarray(amp, dtype=float), np.asarray(phase, dtype=float),
-                   np.asarray(offset, dtype=float))
+        try:
+            return cls(float(freq), np.asarray(amp, dtype=float),
+                       np.asarray(phase, dtype=float), np.asarray(offset, dtype=float))
+        except (SettingsError, TypeError, ValueError) as e:  # NaN, nested lists, text
+            raise RobovaeError(f"robovae: {path}: not a gait file ({e})") from None
 
 
 @dataclass
@@ -129,8 +148,10 @@ def replay(env: gymnasium.Env, gait: SinusoidGait, seconds: float, seed: int | N
     unhealthy step is recorded, not a reason to stop).
 
     Raises:
-        RobovaeError: the gait's actuators do not match the environment's.
+        RobovaeError: the gait's actuators do not match the environment's; SettingsError:
+            ``seconds`` not a finite number > 0.
     """
+    check_settings("replay", seconds=(seconds, number(0, low_open=True)))
     walk = cast("WalkEnv", env.unwrapped)  # Env.unwrapped is typed as a plain Env
     if len(gait.amplitude) != walk.model.nu:
         raise RobovaeError(f"robovae: {walk.robot_path}: the gait drives {len(gait.amplitude)} "

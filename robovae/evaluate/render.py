@@ -43,6 +43,7 @@ from robovae.evaluate.scene import (  # noqa: E402
     settle,
 )
 from robovae.files import writable_file  # noqa: E402
+from robovae.settings import check_settings, integer, number  # noqa: E402
 
 __all__ = ["contact_sheet", "render_robot", "robot_camera", "save_png", "side_by_side"]
 
@@ -228,8 +229,12 @@ def contact_sheet(items: Sequence[Robot], path: str | os.PathLike, columns: int 
     Raises:
         RobovaeError: no robot could be drawn (the first one's error; nothing is written), the
             sheet would exceed :data:`MAX_SHEET_PIXELS`, or ``path`` cannot be written (both
-            refused before any rendering).
+            refused before any rendering); SettingsError: ``columns``, the tile size or
+            ``max_items`` not integers >= 1, ``settle_seconds`` negative.
     """
+    check_settings("contact_sheet", columns=(columns, integer(1)), width=(size[0], integer(1)),
+                   height=(size[1], integer(1)), max_items=(max_items, integer(1).or_none()),
+                   settle_seconds=(settle_seconds, number(0)))
     items = list(items)[: max_items if max_items is not None else None]
     if not items:
         raise ValueError("robovae: contact_sheet needs at least one robot")

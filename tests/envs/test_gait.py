@@ -92,3 +92,16 @@ def test_bad_gaits_are_refused_in_one_line(quadruped, tmp_path):
     env = gymnasium.make(robovae.envs.WALK_ID, robot=str(quadruped))
     with pytest.raises(RobovaeError, match="the gait drives 2 actuators, the robot has"):
         replay(env, SinusoidGait(1.0, np.ones(2), np.zeros(2)), 1.0)
+    # accepted until 2026-11-29: NaN controls (MuJoCo's instability warning), one step for a
+    # negative duration, a traceback for NaN
+    nan = tmp_path / "nan.json"
+    nan.write_text('{"frequency": NaN, "amplitude": [1.0], "phase": [0.0]}')
+    with pytest.raises(RobovaeError, match="nan.json: not a gait file .robovae: SinusoidGait."
+                                           "frequency must be a number >= 0, got nan"):
+        SinusoidGait.from_json(nan)
+    with pytest.raises(ValueError, match="must be finite vectors of one length"):
+        SinusoidGait(1.0, np.array([1.0, np.inf]), np.zeros(2))
+    nu = env.unwrapped.model.nu
+    for seconds in (-1.0, float("nan")):
+        with pytest.raises(ValueError, match="replay.seconds must be a number > 0"):
+            replay(env, SinusoidGait(1.0, np.ones(nu), np.zeros(nu)), seconds)

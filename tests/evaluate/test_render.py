@@ -234,6 +234,18 @@ def test_contact_sheet_too_large_is_refused_before_rendering(tmp_path: Path) -> 
     assert not (tmp_path / "s.png").exists()
 
 
+def test_contact_sheet_settings_are_checked_before_rendering(tmp_path: Path) -> None:
+    """A tile size of -5 px was a NumPy traceback after the check of the sheet's size, and 0
+    columns drew one (until 2026-11-29)."""
+    missing = [tmp_path / "r.xml"]
+    for bad, message in (({"size": (-5, 60)}, "contact_sheet.width must be an integer >= 1"),
+                         ({"columns": 0}, "contact_sheet.columns must be an integer >= 1"),
+                         ({"settle_seconds": -1.0}, "settle_seconds must be a number >= 0")):
+        with pytest.raises(ValueError, match=message):
+            R.contact_sheet(missing, tmp_path / "s.png", **bad)
+    assert not (tmp_path / "s.png").exists()
+
+
 def test_side_by_side(tmp_path: Path) -> None:
     out = R.side_by_side(_legged_spec(), _legged_spec(leg_geoms=False), tmp_path / "sbs.png",
                          size=(200, 150))
