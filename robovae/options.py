@@ -7,7 +7,8 @@ generate` calls :func:`check_generate`, :func:`robovae.design.variations.generat
 :func:`robovae.evaluate.analyze.analyze` :func:`check_analyze`.
 The ``robovae`` command calls the same check before it imports the entry point's module (with it
 torch, PyG and Lightning: 5–9 s), so that a mistyped option is refused, in one line, in under a
-second. Every check raises :class:`~robovae.errors.RobovaeError` naming the option.
+second. Every check raises :class:`~robovae.errors.SettingsError` (a ``RobovaeError`` and a
+``ValueError``) naming the option.
 
 The data sources' options (``synthetic:n=20,…``, ``procedural:n=1000,…``) are parsed by
 :func:`source_options` and :func:`option_int`, the same way for every source.
@@ -18,7 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from robovae.errors import RobovaeError, check_count, check_seed
+from robovae.errors import SettingsError, check_count, check_seed
 
 __all__ = ["check_analyze", "check_generate", "check_interpolate", "check_like", "check_optimize",
            "option_int", "source_options"]
@@ -29,15 +30,15 @@ def source_options(where: str, arg: str, keys: Sequence[str]) -> dict[str, str]:
     of ``keys``; ``where`` names the source in errors (``synthetic source``).
 
     Raises:
-        RobovaeError: one line naming the option that is not ``key=value`` or not known.
+        SettingsError: one line naming the option that is not ``key=value`` or not known.
     """
     out: dict[str, str] = {}
     for part in filter(None, (p.strip() for p in arg.split(","))):
         if "=" not in part:
-            raise RobovaeError(f"robovae: {where}: option '{part}' is not key=value")
+            raise SettingsError(f"robovae: {where}: option '{part}' is not key=value")
         k, v = (t.strip() for t in part.split("=", 1))
         if k not in keys:
-            raise RobovaeError(f"robovae: {where}: unknown option '{k}' ({', '.join(keys)})")
+            raise SettingsError(f"robovae: {where}: unknown option '{k}' ({', '.join(keys)})")
         out[k] = v
     return out
 
@@ -46,15 +47,15 @@ def option_int(where: str, name: str, text: str, lo: int, hi: int) -> int:
     """The integer option ``name=text`` of ``where`` (e.g. a source string), in ``[lo, hi]``.
 
     Raises:
-        RobovaeError: one line, ``robovae: <where>: <name>='x' is not an integer`` or ``…
+        SettingsError: one line, ``robovae: <where>: <name>='x' is not an integer`` or ``…
             is outside [lo, hi]``.
     """
     try:
         v = int(text)
     except ValueError:
-        raise RobovaeError(f"robovae: {where}: {name}={text!r} is not an integer") from None
+        raise SettingsError(f"robovae: {where}: {name}={text!r} is not an integer") from None
     if not lo <= v <= hi:
-        raise RobovaeError(f"robovae: {where}: {name}={v} is outside [{lo}, {hi}]")
+        raise SettingsError(f"robovae: {where}: {name}={v} is outside [{lo}, {hi}]")
     return v
 
 
@@ -67,7 +68,7 @@ def _finite(name: str, value: object, least: float = 0.0) -> None:
     """Refuse ``value`` unless it is a finite number (not a bool) ``>= least``."""
     if (isinstance(value, bool) or not isinstance(value, (int, float))
             or not least <= value < math.inf):
-        raise RobovaeError(f"robovae: {name} must be a finite number >= {least:g}, "
+        raise SettingsError(f"robovae: {name} must be a finite number >= {least:g}, "
                            f"got {value!r}")
 
 
@@ -99,7 +100,7 @@ def check_like(radius: object, n: object, redraws: object = 4, seed: object = 0)
 def check_interpolate(steps: object) -> None:
     """``robovae interpolate``: at least the two ends, at most :data:`MAX_STEPS`."""
     if isinstance(steps, bool) or not isinstance(steps, int) or not 2 <= steps <= MAX_STEPS:
-        raise RobovaeError(f"robovae: --steps must be an integer in [2, {MAX_STEPS}] (the two "
+        raise SettingsError(f"robovae: --steps must be an integer in [2, {MAX_STEPS}] (the two "
                            f"ends and the robots between), got {steps!r}")
 
 
@@ -115,23 +116,23 @@ def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
     from robovae.design.score import TASKS  # MuJoCo only
 
     if task not in TASKS:
-        raise RobovaeError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
+        raise SettingsError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
     if budget <= 0:
-        raise RobovaeError(f"robovae: --budget must be > 0, got {budget}")
+        raise SettingsError(f"robovae: --budget must be > 0, got {budget}")
     if top < 1:
-        raise RobovaeError(f"robovae: --top must be >= 1, got {top}")
+        raise SettingsError(f"robovae: --top must be >= 1, got {top}")
     if not 0.0 < variance <= 1.0:
-        raise RobovaeError(f"robovae: --variance must be in (0, 1], got {variance}")
+        raise SettingsError(f"robovae: --variance must be in (0, 1], got {variance}")
     if population is not None and population < 2:
-        raise RobovaeError(f"robovae: --population must be >= 2, got {population}")
+        raise SettingsError(f"robovae: --population must be >= 2, got {population}")
     if score_sets < 1:
-        raise RobovaeError(f"robovae: --score-sets must be >= 1, got {score_sets}")
+        raise SettingsError(f"robovae: --score-sets must be >= 1, got {score_sets}")
     if restart_after is not None and restart_after < 1:
-        raise RobovaeError(f"robovae: --restart-after must be >= 1, got {restart_after}")
+        raise SettingsError(f"robovae: --restart-after must be >= 1, got {restart_after}")
     if local_step is not None and not (local_step > 0 and math.isfinite(local_step)):
-        raise RobovaeError(f"robovae: --local-step must be > 0, got {local_step}")
+        raise SettingsError(f"robovae: --local-step must be > 0, got {local_step}")
     if distinct is not None and not (distinct >= 0 and math.isfinite(distinct)):
-        raise RobovaeError(f"robovae: --distinct must be >= 0, got {distinct}")
+        raise SettingsError(f"robovae: --distinct must be >= 0, got {distinct}")
     check_seed(seed)
 
 
@@ -149,10 +150,10 @@ def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,
     if max_samples is not None:
         check_count("--max-samples", max_samples, 1)
     if not 0 < entropy_seconds < math.inf:
-        raise RobovaeError(f"robovae: --entropy-seconds must be a positive number, not "
+        raise SettingsError(f"robovae: --entropy-seconds must be a positive number, not "
                            f"{entropy_seconds!r}")
     check_count("--gait-rollouts", gait_rollouts, 1)
     if gait_search not in GAIT_SEARCHES:
-        raise RobovaeError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
+        raise SettingsError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
                            f"not {gait_search!r}")
     check_seed(seed)

@@ -30,6 +30,7 @@ from robovae.generate.validate import Validation, validate_robot
 from robovae.generate.writer import write_robot
 from robovae.model.node_transfer import EncodedRobot, decode_near
 from robovae.model.vae import RoboVAE
+from robovae.options import check_interpolate
 
 
 @dataclass
@@ -49,10 +50,10 @@ def latent_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11
     mu_b`` ``[steps, latent_dim]`` and the two robots encoded (module docstring).
 
     Raises:
-        ValueError: ``steps < 2``.
+        SettingsError: (a ``ValueError``) ``steps`` not an integer in ``[2, MAX_STEPS]``
+            (:func:`robovae.options.check_interpolate`).
     """
-    if steps < 2:
-        raise ValueError(f"an interpolation needs at least 2 steps, got {steps}")
+    check_interpolate(steps)
     mu, (wa, wb) = model.encode_nodes(Batch.from_data_list([a, b]))
     t = np.linspace(0.0, 1.0, steps)
     tt = torch.as_tensor(t, dtype=mu.dtype, device=mu.device)[:, None]

@@ -23,8 +23,9 @@ def test_path_starts_and_ends_at_the_encoded_means(trained):
     assert torch.equal(ends[0].mu, z[0]) and torch.equal(ends[1].tree[0], b.parent)
     assert torch.allclose(z[0], mu[0]) and not torch.allclose(z[0], z[-1])
     assert torch.allclose(z[2], (z[0] + z[-1]) / 2, atol=1e-6)
-    with pytest.raises(ValueError, match="at least 2 steps"):
-        latent_path(model, a, b, steps=1)
+    for steps in (1, 10**9):  # 10**9: 256 GB asked at once and a traceback until 2026-11-29
+        with pytest.raises(ValueError, match=r"--steps must be an integer in \[2, 10000\]"):
+            latent_path(model, a, b, steps=steps)
 
 
 def test_node_latents_are_carried_from_the_nodes_each_robot_shares(trained_nodes):
