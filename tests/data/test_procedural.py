@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -360,6 +361,23 @@ def test_bad_specs_give_one_line_errors(arg: str, message: str, tmp_path: Path,
     assert err.count("\n") == 1 and message in err and "Traceback" not in err
     with pytest.raises(ValueError):
         procedural_spec(0, "dragon")
+
+
+def test_generator_settings_are_refused_in_one_line(tmp_path: Path) -> None:
+    """Accepted until 2026-11-29: NaN, negative or reversed strength ranges compiled robots
+    with such gears, a negative clearance sank them into the floor, a negative seed named a
+    file ``proc_quadruped_-0001.xml``."""
+    for bad, message in (({"gear": (math.nan, 2.0)}, "ProceduralConfig.gear must be a range"),
+                         ({"gear": (3.0, 1.0)}, "ProceduralConfig.gear must be a range"),
+                         ({"gear": (-2.0, -1.0)}, "ProceduralConfig.gear must be a range"),
+                         ({"clearance": -1.0}, "ProceduralConfig.clearance must be a number")):
+        with pytest.raises(ValueError, match=message):
+            ProceduralConfig(**bad)
+    with pytest.raises(ValueError, match="procedural robot.seed must be an integer >= 0"):
+        procedural_spec(-1, "quadruped")
+    with pytest.raises(ValueError, match="write_procedural.seed must be an integer >= 0"):
+        write_procedural(tmp_path / "w", 2, seed=-1)
+    assert not (tmp_path / "w").exists()
 
 
 def inertia_tensors(g, fs: str) -> torch.Tensor:

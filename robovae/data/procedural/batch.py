@@ -39,6 +39,7 @@ from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
 from robovae.files import atomic_write
 from robovae.options import option_int, source_options
+from robovae.settings import check_settings, integer
 
 if TYPE_CHECKING:
     from robovae.data.graph import RobotData
@@ -193,11 +194,10 @@ def write_procedural(out_dir: str | os.PathLike, n: int, seed: int = 0,
     ``workers``: processes (``None``: every CPU from 500 files to write, else in-process).
 
     Raises:
-        ValueError: an unknown class or ``n < 0``.
+        ValueError: an unknown class, ``n`` or ``seed`` not an integer ``>= 0``.
     """
     cfg = config or ProceduralConfig()
-    if n < 0:
-        raise ValueError(f"n must be >= 0, got {n}")
+    check_settings("write_procedural", n=(n, integer(0)), seed=(seed, integer(0)))
     mix = check_classes(classes) if classes is not None else dict(cfg.mix)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -23,6 +23,7 @@ from robovae.data.procedural.blueprint import Part, RobotPlan, lowest_point
 from robovae.data.procedural.parts import size_motors
 from robovae.data.procedural.sampler import Sampler, load_ranges
 from robovae.data.procedural.spec import build_spec
+from robovae.settings import Rule, check_settings, integer, number
 
 #: Robot classes and the function that samples each one's root part.
 CLASSES: dict[str, Callable[[Sampler], tuple[Part, bool]]] = {
@@ -69,6 +70,12 @@ def check_classes(classes: Mapping[str, float] | Sequence[str]) -> dict[str, flo
     return {c: w / total for c, w in mix.items()}
 
 
+#: A strength range ``(low, high)``: finite, ``0 < low <= high``.
+_GEAR = Rule(lambda v: isinstance(v, (tuple, list)) and len(v) == 2
+             and all(number(0, low_open=True).test(g) for g in v) and v[0] <= v[1],
+             "a range (low, high) with 0 < low <= high")
+
+
 @dataclass(frozen=True)
 class ProceduralConfig:
     """Options of the generator besides the ranges of ``ranges.yaml``.
@@ -81,6 +88,10 @@ class ProceduralConfig:
         actuators: add the motors.
         self_collision: let robot geoms collide with each other (not only with a floor).
         clearance: gap between a floating robot's lowest point and ``z = 0`` at ``qpos0`` (m).
+
+    Raises:
+        ValueError: a bad ``mix`` (:func:`check_classes`), a ``gear`` range that is not
+            ``0 < low <= high`` (finite), a ``clearance`` that is not a finite number ``>= 0``.
     """
 
     mix: Mapping[str, float] = field(default_factory=default_mix)
@@ -91,6 +102,8 @@ class ProceduralConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mix", check_classes(self.mix))
+        check_settings("ProceduralConfig", gear=(self.gear, _GEAR.or_none()),
+                       clearance=(self.clearance, number(0)))
 
 
 def procedural_name(kind: str, seed: int) -> str:
@@ -113,8 +126,9 @@ def procedural_plan(seed: int, kind: str | None = None,
     """The plan of robot ``seed`` of class ``kind`` (``None``: drawn from ``config.mix``).
 
     Raises:
-        ValueError: an unknown class.
+        ValueError: an unknown class, a ``seed`` that is not an integer ``>= 0``.
     """
+    check_settings("procedural robot", seed=(seed, integer(0)))
     cfg = config or ProceduralConfig()
     if kind is None:
         kind = draw_class(seed, cfg.mix)
