@@ -58,6 +58,7 @@ from robovae.data.workers import process_pool
 from robovae.errors import RobotFileError
 from robovae.evaluate.quality.stage import FLOOR, Stage, stage_compiled
 from robovae.evaluate.quality.standing import HeldRun, first_steps
+from robovae.settings import check_settings, choice, number
 
 _BAD_WARNINGS = {
     mujoco.mjtWarning.mjWARN_BADQACC: "bad qacc",
@@ -235,8 +236,10 @@ def check_robot(path: str | Path, duration: float = 1.0, penetration_tol: float 
     robot's lowest point and compiles the spec again) and the held simulation, whose first
     ``duration`` seconds were the validation's (the standing test continues it:
     :func:`~robovae.evaluate.quality.standing.standing` with ``held``)."""
-    if controls not in CONTROLS:
-        raise ValueError(f"controls must be one of {CONTROLS}, not {controls!r}")
+    check_settings("validate_robot", duration=(duration, number(0, low_open=True)),
+                   penetration_tol=(penetration_tol, number(0)),
+                   energy_factor=(energy_factor, number(0, low_open=True)),
+                   controls=(controls, choice(CONTROLS)))
     path = Path(path)
     fail = lambda reason, detail, **kw: Validation(str(path), False, reason,  # noqa: E731
                                                     " ".join(str(detail).split()), **kw)

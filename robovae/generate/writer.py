@@ -60,6 +60,7 @@ from robovae.generate.stance import (
     level_soles,
     level_stilts,
 )
+from robovae.settings import check_settings, number
 
 __all__ = ["DEFAULT_CLEARANCE", "WriteResult", "graph_to_spec", "scene_xml", "write_robot"]
 
@@ -135,6 +136,7 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
            ) -> tuple[mujoco.MjSpec, mujoco.MjModel, list[str]]:
     """The spec (stance rules and floor placement applied), a model compiled before the
     placement (its counts are right, its root height is not) and the fired rules."""
+    check_settings("write_robot", clearance=(clearance, number(0).or_none()))
     if actuators not in ("auto", "all", "none"):
         raise ValueError(f"actuators must be 'auto', 'all' or 'none', not {actuators!r}")
     fired: list[str] = []

@@ -88,9 +88,17 @@ def test_mujoco_warning(tmp_path, controls):
     assert v.reason == "mujoco_warning" and "bad qacc" in v.detail and v.steps == 1
 
 
-def test_unknown_controls_are_refused(tmp_path):
-    with pytest.raises(ValueError, match="controls"):
-        validate_robot(_write(tmp_path, "box", BOX.format(z=1)), controls="random")
+def test_unknown_controls_and_settings_out_of_range_are_refused(tmp_path):
+    box = _write(tmp_path, "box", BOX.format(z=1))
+    with pytest.raises(ValueError, match="controls must be one of held, zero"):
+        validate_robot(box, controls="random")
+    # a duration of -1 judged one step valid, NaN was a traceback, until 2026-11-29
+    for bad, message in (({"duration": -1.0}, "validate_robot.duration must be a number > 0"),
+                         ({"duration": float("nan")}, "duration must be a number > 0, got nan"),
+                         ({"energy_factor": float("nan")}, "energy_factor must be a number"),
+                         ({"penetration_tol": -1.0}, "penetration_tol must be a number >= 0")):
+        with pytest.raises(ValueError, match=message):
+            validate_robot(box, **bad)
 
 
 @pytest.mark.parametrize("controls", CONTROLS)

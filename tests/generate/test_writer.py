@@ -221,6 +221,10 @@ def test_free_robot_is_placed_above_the_floor(fs, tmp_path):
     want[1, z] = back.x[1, z]
     assert_same(g, back, want, fs, "placed quadruped")
     assert back.x[1, z] != pytest.approx(g.x[1, z].item())
+    for bad in (float("nan"), -1.0):  # wrote a robot, as if placed, until 2026-11-29
+        with pytest.raises(ValueError, match="write_robot.clearance must be a number >= 0"):
+            write_robot(g, tmp_path / "bad", fs, clearance=bad)
+    assert not (tmp_path / "bad").exists()
 
 
 def test_scene_loads_and_simulates(tmp_path):
