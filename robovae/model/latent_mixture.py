@@ -25,6 +25,8 @@ import torch
 from torch import Tensor, nn
 from torch_geometric.data import Batch
 
+from robovae.settings import check_settings, integer
+
 __all__ = ["LatentMixture", "fit_to_robots", "principal_basis"]
 
 
@@ -43,8 +45,8 @@ class LatentMixture(nn.Module):
 
     def __init__(self, latent_dim: int, components: int) -> None:
         super().__init__()
-        if components < 1:
-            raise ValueError(f"robovae: a latent mixture needs components >= 1, got {components}")
+        check_settings("LatentMixture", latent_dim=(latent_dim, integer(1)),
+                       components=(components, integer(1)))
         self.register_buffer("weights", torch.full((components,), 1.0 / components))
         self.register_buffer("means", torch.zeros(components, latent_dim))
         self.register_buffer("stds", torch.ones(components, latent_dim))
@@ -71,9 +73,22 @@ class LatentMixture(nn.Module):
             tol: float = 1e-6) -> LatentMixture:
         """Fit by EM to the rows of ``mu`` ``[N, D]`` (``N >= K``): means initialised at ``K``
         distinct rows drawn with ``seed``, stopped after ``iters`` steps or when the mean
-        log-likelihood gains less than ``tol``. Float64 inside; returns ``self``."""
+        log-likelihood gains less than ``tol``. Float64 inside; returns ``self``.
+
+        Raises:
+            ValueError: ``mu`` not ``[N, latent_dim]``, fewer rows than components, or rows
+                that are not finite (a diverged model's latents: the mixture is left as it was).
+        """
         x = mu.detach().double().cpu()
         n, k = x.shape[0], self.means.shape[0]
+        if x.ndim != 2 or x.shape[1] != self.means.shape[1]:
+            raise ValueError(f"robovae: a latent mixture of dimension {self.means.shape[1]} is "
+                             f"fitted to latents [N, {self.means.shape[1]}], got "
+                             f"{list(x.shape)}")
+        bad = int((~torch.isfinite(x).all(1)).sum())
+        if bad:
+            raise ValueError(f"robovae: {bad} of {n} latents to fit the mixture to are not "
+                             "finite (NaN or inf: did training diverge?)")
         if n < k:
             raise ValueError(f"robovae: fitting {k} mixture components needs at least {k} "
                              f"latents, got {n}")

@@ -64,6 +64,21 @@ def test_fewer_latents_than_components_is_refused():
         LatentMixture(2, 5).fit(torch.zeros(3, 2))
 
 
+def test_latents_that_are_not_finite_or_of_another_size_are_refused():
+    """A NaN latent (a diverged model) fitted a NaN mixture, and a latent_dim of -1 was a
+    torch error, until 2026-11-29."""
+    mix = LatentMixture(2, 2)
+    x = torch.randn(10, 2)
+    x[3, 1] = float("nan")
+    with pytest.raises(ValueError, match="1 of 10 latents to fit the mixture to are not finite"):
+        mix.fit(x)
+    assert not bool(mix.fitted)
+    with pytest.raises(ValueError, match=r"fitted to latents \[N, 2\], got \[10, 3\]"):
+        mix.fit(torch.randn(10, 3))
+    with pytest.raises(ValueError, match="LatentMixture.latent_dim must be an integer >= 1"):
+        LatentMixture(-1, 2)
+
+
 @pytest.fixture(scope="module")
 def mixture_model(tmp_path_factory):
     """A small model trained 2 epochs on the zoo with a 3-component sampling mixture."""
