@@ -34,8 +34,8 @@ def cmd_data(args: argparse.Namespace) -> int:
     from robovae.data.features import get_feature_set  # NumPy only
     from robovae.data.sources import check_sources  # without torch: a typo refused at once
 
-    check_sources(args.source)
     get_feature_set(args.feature_set)
+    check_sources(args.source, args.feature_set)
     from robovae.data.dataset import RobotDataset
 
     ds = RobotDataset(args.root, args.source, args.feature_set, jobs=args.jobs,

@@ -121,7 +121,7 @@ class RobotDataModule(L.LightningDataModule):
             feature_shift=(feature_shift, number(0)), feature_noise=(feature_noise, number(0)),
             tree_surgery=(tree_surgery, number(0, 1)), surgery_ops=(surgery_ops, integer(1)),
             surgery_max_nodes=(surgery_max_nodes, integer(1)))
-        check_sources(sources)  # a bad source refused now, not when the data is built
+        check_sources(sources, feature_set)  # refused now, not when the data is built
         if val_fraction + test_fraction >= 1:
             raise ValueError(f"robovae: data.val_fraction + data.test_fraction must be below 1 "
                              f"(no robot left to train on), got {val_fraction + test_fraction:g}")

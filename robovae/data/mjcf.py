@@ -35,6 +35,7 @@ import torch
 from robovae.data.actuators import joint_strength
 from robovae.data.box_axes import quat_rotations, quat_to_axes
 from robovae.data.features import (
+    FEATURE_SETS,
     GEOM,
     GEOM_TYPE_IDS,
     JOINT,
@@ -293,8 +294,15 @@ def model_to_graph(
 
     Besides the :mod:`robovae.data.graph` fields, the result holds ``mj_id`` (the MuJoCo id of
     each node's body, joint or geom) and ``warnings`` (one string, ``; ``-separated).
+
+    Raises:
+        KeyError: an unknown feature set, or ``random<d>``: the synthetic trees' features,
+            which no robot has.
     """
     fs = get_feature_set(feature_set) if isinstance(feature_set, str) else feature_set
+    if "link" not in fs.node_types:
+        raise KeyError(f"feature set {fs.name!r} holds random trees' features, which no robot "
+                       f"has: read robots with one of {', '.join(FEATURE_SETS)}")
     with_geoms = "geom" in fs.node_types
     root, warns = robot_root(model)
     warns = list(warnings or []) + warns

@@ -112,14 +112,15 @@ def _split(src: str) -> tuple[str, str]:
     return kind, arg
 
 
-def check_sources(sources: Sequence[str]) -> None:
+def check_sources(sources: Sequence[str], feature_set: str | None = None) -> None:
     """Refuse a bad source string before anything is built, downloaded or imported (this
     module imports neither torch nor PyG: ``robovae data`` calls it before them): an unknown
     kind, a ``synthetic:`` or ``procedural:`` option that is not one, a ``dir:`` that is not a
     folder, a ``dir:``, ``file:`` or bare path that is empty (it would read the working
     folder), a ``menagerie:`` that names no robot; and ``synthetic:`` sources beside robot
     sources or of different ``dim`` (random trees carry ``random<dim>`` features: a robot's
-    features, or another ``dim``'s, cannot share their dataset). One string is one source.
+    features, or another ``dim``'s, cannot share their dataset); with ``feature_set``, robot
+    sources read with ``random<d>`` (no robot has those features). One string is one source.
     Files are checked when they are read.
 
     Raises:
@@ -154,6 +155,10 @@ def check_sources(sources: Sequence[str]) -> None:
     if len(first) > 1:
         raise RobovaeError(f"robovae: sources '{first[0]}' and '{first[1]}' make random trees "
                            "of different dim: they cannot share a dataset")
+    if robots and feature_set is not None and feature_set.startswith("random"):
+        raise RobovaeError(f"robovae: feature set '{feature_set}' holds random trees' features, "
+                           f"which no robot has ('{robots[0]}'): read robots with paper34, "
+                           "kinematic or full")
 
 
 def resolve_sources(sources: Sequence[str]) -> Resolved:

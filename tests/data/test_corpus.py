@@ -376,3 +376,17 @@ def test_sources_checked_without_torch():
     result, loaded, _ = in_fresh_python(code)
     assert result == "robovae: procedural source: n=0 is outside [1, 10000000]"
     assert loaded == []
+
+
+def test_robots_with_random_features_are_refused_at_once(tmp_path, capsys):
+    """``--feature-set random5`` with robot sources: every file was skipped with a
+    misleading 'node types must be in [0, 1)', or a procedural batch failed on its first
+    robot, until 2026-11-29."""
+    assert main(["data", "--root", str(tmp_path / "c"), "--source", "procedural:n=3",
+                 "--feature-set", "random5"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("robovae: feature set 'random5' holds random trees' features, which no "
+                   "robot has ('procedural:n=3'): read robots with paper34, kinematic or full")
+    assert not (tmp_path / "c").exists()
+    with pytest.raises(KeyError, match="holds random trees' features"):
+        mjcf_to_graph(CORPUS / sorted(GOOD)[0], "random5")
