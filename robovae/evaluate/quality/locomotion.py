@@ -339,10 +339,11 @@ def gait(robot: Robot, rollouts: int = 64, seconds: float = 4.0, seed: int = 0,
     than ``seconds``; ``GaitResult.seconds`` says how long and the speed uses it).
 
     Raises:
-        RobovaeError: a model without a floor; RobotFileError: a file that does not load;
+        RobovaeError: a model without a floor; RobotFileError: a file that does not load.
         SettingsError: ``rollouts`` below 1, a ``seed`` out of ``[0, 2**31 - 1]``, a
-        ``frequency`` range that is not ``0 < low <= high`` (finite), or a setting of
-        :class:`GaitTrials` out of range (``seconds`` not > 0, ``settle`` outside ``[0, 1)``).
+            ``frequency`` range that is not ``0 < low <= high`` (finite), or a setting of
+            :class:`GaitTrials` out of range (``seconds`` not > 0, ``settle`` outside
+            ``[0, 1)``).
     """
     check_gait_settings(rollouts, seed, frequency)
     trials = GaitTrials(robot, seconds, settle, max_steps, max_tilt)
