@@ -196,7 +196,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     check_analyze(behaviour=args.behaviour, jobs=args.jobs, permutations=args.permutations,
                   quality=args.quality, procedural=args.procedural, max_samples=args.max_samples,
                   entropy_seconds=args.entropy_seconds, gait_rollouts=args.gait_rollouts,
-                  gait_search=args.gait_search, seed=args.seed)  # before the heavy imports
+                  gait_search=args.gait_search, seed=args.seed,  # before the heavy imports
+                  real=args.real)
     if args.json:  # and before minutes of analysis whose figures it would lose
         writable_file(args.json, "report")
     from robovae.evaluate.analyze import analyze, format_report, save_json

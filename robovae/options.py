@@ -17,7 +17,9 @@ The data sources' options (``synthetic:n=20,…``, ``procedural:n=1000,…``) ar
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from pathlib import Path
 
 from robovae.errors import SettingsError, check_count, check_seed
 
@@ -138,11 +140,13 @@ def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
 
 def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,
                   gait_rollouts: int = 64, gait_search: str = "random", seed: object = 0,
-                  **counts: int) -> None:
+                  real: str | os.PathLike | None = None, **counts: int) -> None:
     """``robovae analyze``: every count of ``counts`` (``behaviour``, ``jobs``, …) an integer
     ``>= 0``, ``max_samples`` (None: all) and ``gait_rollouts`` at least 1, ``entropy_seconds``
     positive and finite, ``gait_search`` one of
-    :data:`robovae.evaluate.quality.gait_search.GAIT_SEARCHES`, ``seed`` in ``[0, MAX_SEED]``."""
+    :data:`robovae.evaluate.quality.gait_search.GAIT_SEARCHES`, ``seed`` in ``[0, MAX_SEED]``,
+    ``real`` (the command's ``--real``; None: not given) a folder that exists (the library's
+    :func:`~robovae.evaluate.analyze.analyze` takes a missing folder for no real robots)."""
     from robovae.evaluate.quality.gait_search import GAIT_SEARCHES  # MuJoCo only
 
     for name, k in counts.items():
@@ -157,3 +161,5 @@ def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,
         raise SettingsError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
                            f"not {gait_search!r}")
     check_seed(seed)
+    if real is not None and not Path(real).is_dir():  # given, not found: not silently none
+        raise SettingsError(f"robovae: {real}: no such folder of real robots (--real)")

@@ -130,7 +130,9 @@ def test_option_mistakes_are_refused_before_torch_is_imported(tmp_path) -> None:
              ["analyze", "--ckpt", ck, "--seed", "2147483648"],
              ["gait", robot, "--seed", "-1", "--out", out],
              # an allocation of 26 GB and a traceback before 2026-11-29
-             ["interpolate", robot, robot, "--ckpt", ck, "--steps", "100000000", "--out", out]]
+             ["interpolate", robot, robot, "--ckpt", ck, "--steps", "100000000", "--out", out],
+             # minutes of analysis without the real robots asked for, before 2026-11-29
+             ["analyze", "--ckpt", ck, "--real", str(tmp_path / "no_such_folder")]]
     codes, loaded, err = in_fresh_python("from robovae.cli import main\n"
                                          f"result = [main(argv) for argv in {cases!r}]")
     assert codes == [2] * len(cases) and loaded == []
@@ -139,4 +141,5 @@ def test_option_mistakes_are_refused_before_torch_is_imported(tmp_path) -> None:
     assert "-n must be an integer of at least 1, not -5" in lines[0] and "--distinct" in lines[4]
     assert all("--seed must be an integer in [0, 2147483647]" in line for line in lines[6:11])
     assert "--steps must be an integer in [2, 10000]" in lines[11]
+    assert "no_such_folder: no such folder of real robots (--real)" in lines[12]
     assert list(tmp_path.iterdir()) == []

@@ -197,7 +197,8 @@ def analyze(ckpt: str | Path, samples: str | Path | None = None,
         entropy_seconds: length of each random-actuation episode.
         quality: quality measures on at most this many robots per population (0: none).
         procedural: procedural robots in the quality table (0: none).
-        real: folder of real robots (default ``../shared/menagerie``; absent: none).
+        real: folder of real robots (default ``../shared/menagerie``; absent: none; ``robovae
+            analyze --real`` refuses a folder that does not exist).
         locomotion: also the gait-speed measure (``gait_rollouts`` rollouts of 4 s per robot).
         gait_search: the gait-speed measure's search, ``"random"`` gaits or ``"cma"`` (random
             gaits tuned by CMA-ES at the same budget:
