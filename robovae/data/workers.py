@@ -43,6 +43,9 @@ class WorkerPool(ProcessPoolExecutor):
     exception, cancels its queued work and ends its busy workers instead of waiting for them
     (:meth:`terminate`; module docstring)."""
 
+    #: How many processes the pool runs (:func:`process_pool`'s, after its cap).
+    workers: int = 1
+
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         if exc_type is None:
@@ -69,9 +72,14 @@ class WorkerPool(ProcessPoolExecutor):
 
 
 def process_pool(workers: int) -> WorkerPool:
-    """A pool of ``workers`` spawned processes, each ending as soon as this process ends
+    """A pool of ``workers`` spawned processes, at most one per core (:func:`os.cpu_count`:
+    more only share the cores, each with its own imports and memory: ``--jobs 1000`` would
+    have started a thousand interpreters), each ending as soon as this process ends
     (:func:`exit_with_parent`)."""
-    return WorkerPool(workers, mp_context=get_context("spawn"), initializer=exit_with_parent)
+    workers = max(1, min(int(workers), os.cpu_count() or 1))
+    pool = WorkerPool(workers, mp_context=get_context("spawn"), initializer=exit_with_parent)
+    pool.workers = workers
+    return pool
 
 
 def exit_with_parent() -> None:

@@ -325,7 +325,7 @@ def worker_pool(jobs: int, warm: bool = False) -> WorkerPool:
     (:func:`~robovae.generate.build.warm_up`), instead of at the first work item."""
     pool = process_pool(jobs)
     if warm:
-        for _ in range(jobs):
+        for _ in range(pool.workers):  # at most one per core (process_pool)
             pool.submit(warm_up)
     return pool
 

@@ -42,6 +42,17 @@ def test_pool_runs_work_in_other_processes():
     assert os.getpid() not in pids and 1 <= len(pids) <= 2
 
 
+def test_a_pool_has_at_most_one_process_per_core(monkeypatch):
+    """``--jobs 1000`` started a thousand interpreters (each with its imports: hundreds of MB)
+    on a machine of 2 cores, until 2026-11-29."""
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    with process_pool(64) as pool:
+        pids = {f.result() for f in [pool.submit(os.getpid) for _ in range(32)]}
+    assert pool.workers == 2 and len(pids) <= 2
+    with process_pool(0) as pool:
+        assert pool.workers == 1
+
+
 def test_an_error_in_the_block_cancels_the_queued_work():
     """The with block waits for its work when it ends normally, and cancels what has not
     started when it ends with an exception (instead of running all of it first)."""

@@ -355,7 +355,7 @@ def test_warm_workers_start_at_once_and_drop_queued_robots_on_an_error():
     from robovae.generate import pipeline
 
     with pytest.raises(KeyboardInterrupt), pipeline.worker_pool(2, warm=True) as pool:
-        assert len(pool._processes) == 2  # started warm, before any work item
+        assert len(pool._processes) == pool.workers  # started warm, before any work item
         workers = list(pool._processes.values())
         manager = pool._executor_manager_thread
         queued = [pool.submit(time.sleep, 0.2) for _ in range(30)]
