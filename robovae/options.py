@@ -17,6 +17,7 @@ The data sources' options (``synthetic:n=20,…``, ``procedural:n=1000,…``) ar
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -68,10 +69,10 @@ MAX_STEPS = 10_000
 
 def _finite(name: str, value: object, least: float = 0.0) -> None:
     """Refuse ``value`` unless it is a finite number (not a bool) ``>= least``."""
-    if (isinstance(value, bool) or not isinstance(value, (int, float))
-            or not least <= value < math.inf):
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real)
+            or not least <= float(value) < math.inf):
         raise SettingsError(f"robovae: {name} must be a finite number >= {least:g}, "
-                           f"got {value!r}")
+                            f"got {value!r}")
 
 
 def check_generate(n: object, temperature: object = 1.0, node_temperature: object = None,
@@ -101,9 +102,10 @@ def check_like(radius: object, n: object, redraws: object = 4, seed: object = 0)
 
 def check_interpolate(steps: object) -> None:
     """``robovae interpolate``: at least the two ends, at most :data:`MAX_STEPS`."""
-    if isinstance(steps, bool) or not isinstance(steps, int) or not 2 <= steps <= MAX_STEPS:
+    if (isinstance(steps, bool) or not isinstance(steps, numbers.Integral)
+            or not 2 <= int(steps) <= MAX_STEPS):
         raise SettingsError(f"robovae: --steps must be an integer in [2, {MAX_STEPS}] (the two "
-                           f"ends and the robots between), got {steps!r}")
+                            f"ends and the robots between), got {steps!r}")
 
 
 def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
@@ -155,11 +157,11 @@ def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,
         check_count("--max-samples", max_samples, 1)
     if not 0 < entropy_seconds < math.inf:
         raise SettingsError(f"robovae: --entropy-seconds must be a positive number, not "
-                           f"{entropy_seconds!r}")
+                            f"{entropy_seconds!r}")
     check_count("--gait-rollouts", gait_rollouts, 1)
     if gait_search not in GAIT_SEARCHES:
         raise SettingsError(f"robovae: --gait-search must be one of {', '.join(GAIT_SEARCHES)}, "
-                           f"not {gait_search!r}")
+                            f"not {gait_search!r}")
     check_seed(seed)
     if real is not None and not Path(real).is_dir():  # given, not found: not silently none
         raise SettingsError(f"robovae: {real}: no such folder of real robots (--real)")
