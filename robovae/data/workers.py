@@ -73,8 +73,8 @@ class WorkerPool(ProcessPoolExecutor):
 
 def process_pool(workers: int) -> WorkerPool:
     """A pool of ``workers`` spawned processes, at most one per core (:func:`os.cpu_count`:
-    more only share the cores, each with its own imports and memory: ``--jobs 1000`` would
-    have started a thousand interpreters), each ending as soon as this process ends
+    more only share the cores, each with its own imports and memory: ``--jobs 1000`` could
+    start a thousand interpreters), each ending as soon as this process ends
     (:func:`exit_with_parent`)."""
     workers = max(1, min(int(workers), os.cpu_count() or 1))
     pool = WorkerPool(workers, mp_context=get_context("spawn"), initializer=exit_with_parent)
