@@ -14,6 +14,7 @@ import statistics
 from collections.abc import Callable
 from pathlib import Path
 
+from robovae.errors import RobovaeError
 from robovae.evaluate.experiment_runner import DOCS, EXPERIMENTS, MENAGERIE17, RUNS
 
 
@@ -202,8 +203,11 @@ def pretrained_table(results: list[dict], experiment: str, name: str) -> str:
 
 
 def _replace_block(text: str, key: str, body: str) -> str:
+    """``text`` with the block ``key`` holding ``body``; a ``body`` of no row (a header and
+    its separator: no run of that table under the root) leaves the block as it was, so that
+    a report over some of the runs keeps the measured tables of the others."""
     start, end = f"<!-- auto:{key} -->", f"<!-- /auto:{key} -->"
-    if start not in text:
+    if start not in text or len(body.strip().splitlines()) <= 2:
         return text
     head, rest = text.split(start, 1)
     _, tail = rest.split(end, 1)
@@ -212,8 +216,16 @@ def _replace_block(text: str, key: str, body: str) -> str:
 
 def report(doc: Path = DOCS / "results.md", root: Path = RUNS) -> None:
     """Fill the ``<!-- auto:... -->`` blocks of ``docs/results.md`` from the runs under ``root``
-    and draw one loss-curve PNG per experiment (its lowest seed) into ``docs/img``."""
+    and draw one loss-curve PNG per experiment (its lowest seed) into ``docs/img``; a table
+    without runs under ``root`` keeps its block.
+
+    Raises:
+        RobovaeError: no ``result.json`` under ``root`` (``doc`` is left as it is; until
+            2026-11-29 every table was emptied).
+    """
     results = load_results(root)
+    if not results:
+        raise RobovaeError(f"robovae: {root}: no result.json of any run; {doc} left as it is")
     for name, e in EXPERIMENTS.items():
         rs = sorted(_group(results, experiment=name, variant="default"), key=lambda r: r["seed"])
         if rs and Path(rs[0]["metrics_csv"]).is_file():

@@ -25,6 +25,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from robovae.errors import RobovaeError
 from robovae.evaluate.experiment_runner import (  # noqa: F401  (the runner's public names)
     ABLATIONS,
     DOCS,
@@ -57,7 +58,15 @@ def _seeds(s: str) -> list[int]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m robovae.evaluate.experiments {run,loo,zeroshot,finetune,ablation,report,all}``:
-    exit code."""
+    exit code; a bad checkpoint, robot or variant is one line on stderr and exit code 2."""
+    try:
+        return _main(argv)
+    except RobovaeError as e:
+        print(e if str(e).startswith("robovae") else f"robovae: {e}", file=sys.stderr)
+        return 2
+
+
+def _main(argv: Sequence[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "--all":
         argv[0] = "all"
@@ -101,6 +110,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     al = sub.add_parser("all", parents=[common], help="every experiment, LOO, ablation, report")
     al.add_argument("--skip-ablation", action="store_true")
     args = p.parse_args(argv)
+    variants = [args.variant] if hasattr(args, "variant") else []
+    variants += [v for v in getattr(args, "only", "").split(",") if v]
+    unknown = [v for v in variants if v not in ABLATIONS]
+    if unknown:  # run as the default configs under another name, until 2026-11-29
+        raise RobovaeError(f"robovae: unknown ablation variant {', '.join(unknown)} (known: "
+                           f"{', '.join(ABLATIONS)})")
+    robots = args.robots.split(",") if hasattr(args, "robots") else []
+    strangers = [r for r in robots if r not in MENAGERIE17]
+    if strangers:  # trained on all 17 and tested on none
+        raise RobovaeError(f"robovae: --robots names {', '.join(repr(r) for r in strangers)}, "
+                           f"not one of the 17 ({', '.join(MENAGERIE17)})")
     if passthrough:
         if not hasattr(args, "overrides"):
             p.error(f"{args.cmd} takes no Lightning CLI overrides")

@@ -11,6 +11,7 @@ import pytest
 import torch
 import yaml
 
+from robovae.errors import RobovaeError
 from robovae.evaluate import experiment_tables
 from robovae.evaluate import experiments as ex
 from robovae.model.checkpoint import load_model
@@ -90,6 +91,25 @@ def test_report_fills_the_marked_blocks(tmp_path, monkeypatch):
     assert f"{mean:.1f} ± 0.0 %" in text
 
 
+def test_report_keeps_the_tables_it_has_no_runs_for(tmp_path, monkeypatch):
+    """``report --root`` of an empty folder emptied every table of docs/results.md, and a root
+    with some runs emptied the others' (until 2026-11-29)."""
+    doc = tmp_path / "results.md"
+    doc.write_text("<!-- auto:loo -->\nmeasured\n<!-- /auto:loo -->\n"
+                   "<!-- auto:experiments -->\nold\n<!-- /auto:experiments -->\n")
+    monkeypatch.setattr(experiment_tables, "DOCS", tmp_path)
+    before = doc.read_text()
+    with pytest.raises(RobovaeError, match="no result.json of any run; .* left as it is"):
+        ex.report(doc, tmp_path / "no_runs")
+    assert doc.read_text() == before
+    root = tmp_path / "runs"
+    (root / "0").mkdir(parents=True)
+    (root / "0" / "result.json").write_text(json.dumps(_fake("menagerie4", 0, "go2", 1.0)))
+    ex.report(doc, root)
+    text = doc.read_text()
+    assert "measured" in text and "old" not in text
+
+
 def test_every_report_table_has_as_many_separators_as_columns():
     results = [_fake(e, 0, "go2", 1.0) for e in ex.EXPERIMENTS]
     results += [_fake("loo", 0, n, 1.0) for n in ex.MENAGERIE17]
@@ -158,3 +178,19 @@ def test_zeroshot_and_finetune_on_the_17(trained, tmp_path, menagerie_dir, cache
     torch.save(data, trained_on)
     with pytest.raises(ValueError, match="trained on \\['go2'\\]"):
         zeroshot(trained_on, "leaky", menagerie_dir, tmp_path, cache_root)
+
+
+def test_experiments_refuse_bad_input_in_one_line(tmp_path, capsys):
+    """A missing checkpoint was a traceback, an unknown variant ran the default configs under
+    its name, an unknown robot trained on all 17 and tested none (until 2026-11-29)."""
+    cases = [(["zeroshot", "--ckpt", str(tmp_path / "none.ckpt"), "--name", "x"],
+              "none.ckpt: no such checkpoint"),
+             (["run", "menagerie2", "--variant", "bogus"], "unknown ablation variant bogus"),
+             (["ablation", "--only", "no_surgery,bogus"], "unknown ablation variant bogus"),
+             (["loo", "--robots", "go2,bogus"], "--robots names 'bogus', not one of the 17")]
+    for argv, message in cases:
+        assert ex.main([*argv, "--root", str(tmp_path / "runs")] if argv[0] != "zeroshot"
+                       else argv) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1 and err.startswith("robovae: ")
+    assert not (tmp_path / "runs").exists()
