@@ -67,6 +67,11 @@ def option_int(where: str, name: str, text: str, lo: int, hi: int) -> int:
 MAX_STEPS = 10_000
 
 
+#: Largest CMA-ES population ``robovae optimize`` takes (its arrays grow with it; 10**8 ran over
+#: a minute without scoring a robot).
+MAX_POPULATION = 10_000
+
+
 def _finite(name: str, value: object, least: float = 0.0) -> None:
     """Refuse ``value`` unless it is a finite number (not a bool) ``>= least``."""
     if (isinstance(value, bool) or not isinstance(value, numbers.Real)
@@ -114,9 +119,9 @@ def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
                    distinct: float | None = None, seed: object = 0) -> None:
     """``robovae optimize``: a known task (:data:`robovae.design.score.TASKS`), ``budget`` and
     ``top`` positive, ``variance`` in ``(0, 1]``, ``population`` (None: the ``cmaes``
-    default) at least 2, ``score_sets`` and ``restart_after`` at least 1, ``local_step`` finite
-    and ``> 0``, ``distinct`` finite and ``>= 0`` (None: not given, the entry point's default),
-    ``seed`` in ``[0, MAX_SEED]``."""
+    default) at least 2 and at most :data:`MAX_POPULATION`, ``score_sets`` and
+    ``restart_after`` at least 1, ``local_step`` finite and ``> 0``, ``distinct`` finite and
+    ``>= 0`` (None: not given, the entry point's default), ``seed`` in ``[0, MAX_SEED]``."""
     from robovae.design.score import TASKS  # MuJoCo only
 
     if task not in TASKS:
@@ -129,6 +134,9 @@ def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
         raise SettingsError(f"robovae: --variance must be in (0, 1], got {variance}")
     if population is not None and population < 2:
         raise SettingsError(f"robovae: --population must be >= 2, got {population}")
+    if population is not None and population > MAX_POPULATION:  # 10**8: a minute, nothing
+        raise SettingsError(f"robovae: --population must be at most {MAX_POPULATION:,} (CMA-ES's "
+                            f"own default is 4 + 3 ln k, 10 to 16 here), got {population}")
     if score_sets < 1:
         raise SettingsError(f"robovae: --score-sets must be >= 1, got {score_sets}")
     if restart_after is not None and restart_after < 1:

@@ -32,6 +32,7 @@ written is refused with one line. A robot's own earlier gait is replaced.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Sequence
 from contextlib import nullcontext
@@ -144,8 +145,8 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
     check_count("--starts", starts, 1)
     check_count("--hold", hold, 1)
     check_seed(seed)
-    if not noise >= 0:
-        raise RobovaeError(f"robovae: --noise must be 0 or more, not {noise!r}")
+    if not 0 <= noise < math.inf:
+        raise RobovaeError(f"robovae: --noise must be a finite number >= 0, not {noise!r}")
     files = [Path(p) for p in paths]
     if not files:
         raise RobovaeError("robovae: no robot files given")

@@ -140,7 +140,9 @@ def test_bad_input_is_refused_in_one_line_before_anything_is_written(robots, tmp
     cases = [([q, "--refine", "8"], "--refine must be an integer of at least 16, not 8"),
              ([q, "--starts", "0"], "--starts must be an integer of at least 1, not 0"),
              ([q, "--hold", "0"], "--hold must be an integer of at least 1, not 0"),
-             ([q, "--noise", "-1"], "--noise must be 0 or more, not -1.0"),
+             ([q, "--noise", "-1"], "--noise must be a finite number >= 0, not -1.0"),
+             # a NumPy OverflowError traceback until 2026-11-29
+             ([q, "--noise", "inf"], "--noise must be a finite number >= 0, not inf"),
              ([q, str(tmp_path / "passive.xml")], "passive.xml: no actuators to walk with"),
              ([q, str(tmp_path / "broken.xml")], "broken.xml"),
              ([q, str(tmp_path / "nope.xml")], "nope.xml: no such file or folder"),

@@ -278,6 +278,9 @@ def test_a_worker_scores_candidates_without_torch(tmp_path):
     (["--task", "walk", "--budget", "-3"], "--budget must be > 0"),
     (["--task", "walk", "--budget", "2", "--variance", "0"], "--variance must be in (0, 1]"),
     (["--task", "walk", "--budget", "2", "--population", "1"], "--population must be >= 2"),
+    # --population 100000000 ran minutes before anything was scored, until 2026-11-29
+    (["--task", "walk", "--budget", "8", "--population", "100000000"],
+     "--population must be at most 10,000"),
     (["--task", "walk", "--budget", "2", "--score-sets", "0"], "--score-sets must be >= 1"),
     (["--task", "walk", "--budget", "2", "--restart-after", "0"], "--restart-after must be >= 1"),
     (["--task", "walk", "--budget", "2", "--local-step", "0"], "--local-step must be > 0"),
