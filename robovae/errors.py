@@ -10,8 +10,10 @@ dataset builder print ``str(err)`` and go on with the other files.
 
 from __future__ import annotations
 
+import math
 import numbers
 import os
+from typing import TypeGuard
 
 
 class RobovaeError(Exception):
@@ -23,6 +25,19 @@ class SettingsError(RobovaeError, ValueError):
     :class:`RobovaeError`, and the ``ValueError`` Python raises for a bad argument."""
 
 
+def is_integer(value: object) -> TypeGuard[numbers.Integral]:
+    """An integer, not a bool (NumPy's integers count): the one test of every integer setting
+    (:func:`check_count`, :func:`check_seed`, :func:`robovae.settings.integer`)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def is_finite(value: object) -> TypeGuard[numbers.Real]:
+    """A finite real number, not a bool (NumPy's count): the one test of every number
+    setting (:func:`robovae.settings.number`)."""
+    return (isinstance(value, numbers.Real) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
 #: The largest seed a command takes (a robot's or a run's streams derive from it).
 MAX_SEED = 2**31 - 1
 
@@ -30,8 +45,7 @@ MAX_SEED = 2**31 - 1
 def check_seed(seed: object, option: str = "--seed") -> None:
     """Refuse ``seed`` unless it is an integer in ``[0, MAX_SEED]``: one line ``robovae:
     <option> must be an integer in [0, 2147483647], not <value>`` (NumPy's integers count)."""
-    if (isinstance(seed, bool) or not isinstance(seed, numbers.Integral)
-            or not 0 <= int(seed) <= MAX_SEED):
+    if not is_integer(seed) or not 0 <= int(seed) <= MAX_SEED:
         raise SettingsError(f"robovae: {option} must be an integer in [0, {MAX_SEED}], "
                             f"not {seed!r}")
 
@@ -40,7 +54,7 @@ def check_count(option: str, value: object, least: int) -> None:
     """Refuse ``value`` unless it is an integer (not a bool; NumPy's integers count) of at
     least ``least``: one line ``robovae: <option> must be an integer of at least <least>, not
     <value>``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < least:
+    if not is_integer(value) or int(value) < least:
         raise SettingsError(f"robovae: {option} must be an integer of at least {least}, "
                             f"not {value!r}")
 

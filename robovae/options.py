@@ -17,12 +17,12 @@ The data sources' options (``synthetic:n=20,…``, ``procedural:n=1000,…``) ar
 from __future__ import annotations
 
 import math
-import numbers
 import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from robovae.errors import SettingsError, check_count, check_seed
+from robovae.errors import SettingsError, check_count, check_seed, is_integer
+from robovae.settings import number
 
 __all__ = ["check_analyze", "check_generate", "check_interpolate", "check_like", "check_optimize",
            "option_int", "source_options"]
@@ -74,8 +74,7 @@ MAX_POPULATION = 10_000
 
 def _finite(name: str, value: object, least: float = 0.0) -> None:
     """Refuse ``value`` unless it is a finite number (not a bool) ``>= least``."""
-    if (isinstance(value, bool) or not isinstance(value, numbers.Real)
-            or not least <= float(value) < math.inf):
+    if not number(least).test(value):
         raise SettingsError(f"robovae: {name} must be a finite number >= {least:g}, "
                             f"got {value!r}")
 
@@ -107,8 +106,7 @@ def check_like(radius: object, n: object, redraws: object = 4, seed: object = 0)
 
 def check_interpolate(steps: object) -> None:
     """``robovae interpolate``: at least the two ends, at most :data:`MAX_STEPS`."""
-    if (isinstance(steps, bool) or not isinstance(steps, numbers.Integral)
-            or not 2 <= int(steps) <= MAX_STEPS):
+    if not is_integer(steps) or not 2 <= int(steps) <= MAX_STEPS:
         raise SettingsError(f"robovae: --steps must be an integer in [2, {MAX_STEPS}] (the two "
                             f"ends and the robots between), got {steps!r}")
 

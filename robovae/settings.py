@@ -12,14 +12,13 @@ negative ``beta`` or ``lr`` trains without complaint). Importable without torch.
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TypeGuard
 
-from robovae.errors import SettingsError
+from robovae.errors import SettingsError, is_finite, is_integer
 
-__all__ = ["FEATURE_SET", "FINITE", "Rule", "check_settings", "choice", "integer", "number"]
+__all__ = ["FEATURE_SET", "FINITE", "Rule", "check_settings", "choice", "integer", "number",
+           "span"]
 
 
 @dataclass(frozen=True)
@@ -35,27 +34,23 @@ class Rule:
         return Rule(lambda v: v is None or self.test(v), f"{self.want}, or null")
 
 
-def _real(v: object) -> TypeGuard[float]:
-    """A finite int or float, not a bool."""
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
 #: Any finite number (a reward weight may be negative).
-FINITE = Rule(_real, "a finite number")
+FINITE = Rule(is_finite, "a finite number")
 
 
 def integer(least: int) -> Rule:
     """An integer (not a bool; NumPy's integers count) ``>= least``."""
-    return Rule(lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool)
-                and int(v) >= least, f"an integer >= {least}")
+    return Rule(lambda v: is_integer(v) and int(v) >= least, f"an integer >= {least}")
 
 
 def number(low: float, high: float = math.inf, *, low_open: bool = False,
            high_open: bool = False) -> Rule:
     """A finite number in ``[low, high]`` (``low_open``/``high_open``: that end excluded)."""
     def test(v: object) -> bool:
-        return (_real(v) and (v > low if low_open else v >= low)
-                and (v < high if high_open else v <= high))
+        if not is_finite(v):
+            return False
+        x = float(v)
+        return (x > low if low_open else x >= low) and (x < high if high_open else x <= high)
 
     if high == math.inf:
         want = f"a number {'>' if low_open else '>='} {low:g}"
@@ -63,6 +58,17 @@ def number(low: float, high: float = math.inf, *, low_open: bool = False,
         want = (f"a number in {'(' if low_open else '['}{low:g}, {high:g}"
                 f"{')' if high_open else ']'}")
     return Rule(test, want)
+
+
+def span(strict: bool = False) -> Rule:
+    """A range ``(low, high)`` of finite numbers with ``0 < low <= high`` (``strict``:
+    ``low < high``): a strength range, a gait's frequency range."""
+    def test(v: object) -> bool:
+        return (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_finite(x) for x in v)
+                and float(v[0]) > 0 and (float(v[0]) < float(v[1]) if strict
+                                         else float(v[0]) <= float(v[1])))
+
+    return Rule(test, f"a range (low, high) with 0 < low {'<' if strict else '<='} high")
 
 
 def choice(values: Sequence[str]) -> Rule:

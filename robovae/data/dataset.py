@@ -25,7 +25,7 @@ from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
 from robovae.data.graph import RobotData, limbs
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.data.procedural.batch import procedural_graphs
-from robovae.data.sources import check_sources, resolve_sources
+from robovae.data.sources import resolve_sources, source_list
 from robovae.data.workers import process_pool
 from robovae.errors import RobotFileError, RobovaeError
 from robovae.files import writable
@@ -120,14 +120,13 @@ class RobotDataset(InMemoryDataset):
         transform: Callable | None = None,
     ) -> None:
         check_settings("RobotDataset", jobs=(jobs, integer(0)))
-        self.sources = [sources] if isinstance(sources, str) else list(sources)
+        self.sources = source_list(sources)
         self.jobs = jobs or (os.cpu_count() or 1)
         self.progress = progress
         root = Path(root)
-        self._resolved = resolve_sources(self.sources)
+        self._resolved = resolve_sources(self.sources, feature_set)
         self.feature_set = self._resolved.feature_set or feature_set
         get_feature_set(self.feature_set)  # fail early on unknown names
-        check_sources(self.sources, self.feature_set)
         self._key = self._fingerprint()
         made = [d for d in (root / "processed", root / "raw", root) if not d.exists()]
         try:

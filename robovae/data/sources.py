@@ -112,7 +112,12 @@ def _split(src: str) -> tuple[str, str]:
     return kind, arg
 
 
-def check_sources(sources: Sequence[str], feature_set: str | None = None) -> None:
+def source_list(sources: str | Sequence[str]) -> list[str]:
+    """``sources`` as a list: one string is one source (not one per character)."""
+    return [sources] if isinstance(sources, str) else list(sources)
+
+
+def check_sources(sources: str | Sequence[str], feature_set: str | None = None) -> None:
     """Refuse a bad source string before anything is built, downloaded or imported (this
     module imports neither torch nor PyG: ``robovae data`` calls it before them): an unknown
     kind, a ``synthetic:`` or ``procedural:`` option that is not one, a ``dir:`` that is not a
@@ -126,11 +131,9 @@ def check_sources(sources: Sequence[str], feature_set: str | None = None) -> Non
     Raises:
         RobovaeError: one line naming the source.
     """
-    if isinstance(sources, str):  # one source, not one per character
-        sources = [sources]
     dims: dict[int, str] = {}  # the dim of each synthetic source -> its first source
     robots = []  # the other sources
-    for src in sources:
+    for src in source_list(sources):
         kind, arg = _split(src)
         if kind == "synthetic":
             dims.setdefault(parse_synthetic(arg)["dim"], src)
@@ -161,15 +164,16 @@ def check_sources(sources: Sequence[str], feature_set: str | None = None) -> Non
                            "kinematic or full")
 
 
-def resolve_sources(sources: Sequence[str]) -> Resolved:
-    """Expand source strings into files, in-memory graphs and procedural batches (module table).
+def resolve_sources(sources: str | Sequence[str], feature_set: str | None = None) -> Resolved:
+    """Expand source strings into files, in-memory graphs and procedural batches (module table),
+    after :func:`check_sources` (``feature_set``: the one asked for, checked against them).
 
     Raises:
         RobovaeError: a bad source (:func:`check_sources`) or one that cannot be read (a
             Menagerie robot not found, a synthetic set that cannot hold an unseen tree).
     """
-    sources = [sources] if isinstance(sources, str) else sources
-    check_sources(sources)
+    sources = source_list(sources)
+    check_sources(sources, feature_set)
     out = Resolved()
     for src in sources:
         kind, arg = _split(src)

@@ -60,7 +60,8 @@ class PriorSampling:
         check_seed(seed, "sample_prior seed")
         check_settings("sample_prior", temperature=(temperature, number(0)),
                        node_temperature=(node_temperature, number(0).or_none()))
-        bad = [i for i in indices if not integer(0).test(i)][:1]
+        index = integer(0)
+        bad = [i for i in indices if not index.test(i)][:1]
         if bad or not len(indices):
             raise SettingsError(f"robovae: sample_prior.indices must be a non-empty sequence of "
                                 f"integers >= 0, got {'no index' if not bad else bad[0]!r}")

@@ -11,7 +11,6 @@
 from __future__ import annotations
 
 import math
-import numbers
 import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -23,7 +22,7 @@ from robovae.data.procedural.blueprint import Part, RobotPlan, lowest_point
 from robovae.data.procedural.parts import size_motors
 from robovae.data.procedural.sampler import Sampler, load_ranges
 from robovae.data.procedural.spec import build_spec
-from robovae.settings import Rule, check_settings, integer, number
+from robovae.settings import check_settings, integer, number, span
 
 #: Robot classes and the function that samples each one's root part.
 CLASSES: dict[str, Callable[[Sampler], tuple[Part, bool]]] = {
@@ -58,7 +57,7 @@ def check_classes(classes: Mapping[str, float] | Sequence[str]) -> dict[str, flo
     for c, w in mix.items():
         if c not in CLASSES:
             raise ValueError(f"unknown procedural class '{c}' (known: {', '.join(CLASSES)})")
-        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not 0 <= w < math.inf:
+        if not number(0).test(w):
             raise ValueError(f"the weight of procedural class '{c}' must be a finite number "
                              f">= 0, got {w!r}")
     if not mix or max(mix.values()) <= 0:
@@ -68,12 +67,6 @@ def check_classes(classes: Mapping[str, float] | Sequence[str]) -> dict[str, flo
         mix = {c: w / top for c, w in mix.items()}
     total = sum(mix.values())
     return {c: w / total for c, w in mix.items()}
-
-
-#: A strength range ``(low, high)``: finite, ``0 < low <= high``.
-_GEAR = Rule(lambda v: isinstance(v, (tuple, list)) and len(v) == 2
-             and all(number(0, low_open=True).test(g) for g in v) and v[0] <= v[1],
-             "a range (low, high) with 0 < low <= high")
 
 
 @dataclass(frozen=True)
@@ -102,7 +95,7 @@ class ProceduralConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mix", check_classes(self.mix))
-        check_settings("ProceduralConfig", gear=(self.gear, _GEAR.or_none()),
+        check_settings("ProceduralConfig", gear=(self.gear, span().or_none()),
                        clearance=(self.clearance, number(0)))
 
 

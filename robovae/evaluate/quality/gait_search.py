@@ -33,15 +33,9 @@ from typing import Any
 import numpy as np
 
 from robovae.errors import check_seed
-from robovae.evaluate.quality.locomotion import (
-    FREQUENCIES,
-    GaitResult,
-    GaitTrials,
-    gait,
-    random_gaits,
-)
+from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, gait, random_gaits
 from robovae.evaluate.quality.stage import Robot
-from robovae.settings import Rule, check_settings, integer, number
+from robovae.settings import check_settings, integer, number, span
 
 __all__ = ["GAIT_SEARCHES", "budget_gait", "searched_gait", "trials_search"]
 
@@ -75,17 +69,11 @@ def searched_gait(robot: Robot, rollouts: int = 16, refine: int = 496, seconds: 
                          refine, seed, frequency, population, step)
 
 
-#: The search's frequency range: as a random gait's, and not one frequency (its CMA-ES
-#: searches a share of the range).
-_FREQUENCY_SPAN = Rule(lambda v: FREQUENCIES.test(v) and v[0] < v[1],  # type: ignore[index]
-                       "a range (low, high) in Hz with 0 < low < high")
-
-
 def _check(rollouts: int, refine: int, population: int, step: float, seed: int,
            frequency: tuple[float, float]) -> None:
     check_settings("searched_gait", rollouts=(rollouts, integer(1)), refine=(refine, integer(0)),
                    population=(population, integer(2)), step=(step, number(0, low_open=True)),
-                   frequency=(frequency, _FREQUENCY_SPAN))
+                   frequency=(frequency, span(strict=True)))  # CMA-ES searches a share of it
     check_seed(seed, "gait seed")
 
 
