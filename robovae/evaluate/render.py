@@ -249,7 +249,7 @@ def contact_sheet(items: Sequence[Robot], path: str | os.PathLike, columns: int 
     if len(labels) < len(items):
         raise ValueError(f"robovae: {len(labels)} labels for {len(items)} robots")
     w, h = size
-    cols = max(1, min(columns, len(items)))
+    cols = min(columns, len(items))  # columns >= 1 (checked), items >= 1
     rows = math.ceil(len(items) / cols)
     sheet = np.empty((rows * h, cols * w, 3), dtype=np.uint8)
     sheet[:] = _TILE_BG
