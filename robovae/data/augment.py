@@ -33,6 +33,7 @@ from torch_geometric.transforms import BaseTransform
 
 from robovae.data.features import FeatureSet, get_feature_set
 from robovae.data.graph import RobotData, tree_data
+from robovae.settings import check_settings, integer, number
 
 #: streams of :func:`run_seed`: the training loader's shuffle, the model's reparametrisation
 #: noise (and the tree surgery, which has always shared its seed), the feature jitter
@@ -64,9 +65,13 @@ class FeatureJitter(BaseTransform):
         feature_set: the registry set of the batch's columns (its categorical columns are kept).
         shift: std of the per-robot, per-column offsets (0: none).
         noise: std of the per-node noise (0: none).
+
+    Raises:
+        SettingsError: ``shift`` or ``noise`` negative or not finite (one line).
     """
 
     def __init__(self, feature_set: str | FeatureSet, shift: float, noise: float) -> None:
+        check_settings("FeatureJitter", shift=(shift, number(0)), noise=(noise, number(0)))
         fs = get_feature_set(feature_set) if isinstance(feature_set, str) else feature_set
         self.keep = fs.column_transform("categorical")
         self.shift, self.noise = float(shift), float(noise)
@@ -106,10 +111,15 @@ class TreeSurgery(BaseTransform):
         prob: probability that a robot is rebuilt (0: none).
         max_ops: at most this many edits per rebuilt robot.
         max_nodes: edits that would make a robot larger are skipped.
+
+    Raises:
+        SettingsError: ``prob`` outside ``[0, 1]``, ``max_ops`` or ``max_nodes`` below 1.
     """
 
     def __init__(self, feature_set: str | FeatureSet, prob: float, max_ops: int = 3,
                  max_nodes: int = 256) -> None:
+        check_settings("TreeSurgery", prob=(prob, number(0, 1)), max_ops=(max_ops, integer(1)),
+                       max_nodes=(max_nodes, integer(1)))
         self.feature_set = get_feature_set(feature_set) if isinstance(feature_set, str) \
             else feature_set
         self.prob, self.max_ops, self.max_nodes = float(prob), int(max_ops), int(max_nodes)

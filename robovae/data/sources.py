@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 from robovae.data.procedural.batch import ProceduralSource, parse_procedural
 from robovae.data.robot_file import SUFFIXES
-from robovae.errors import RobovaeError
+from robovae.errors import MAX_SEED, RobovaeError
 from robovae.options import option_int, source_options
 
 if TYPE_CHECKING:
@@ -198,7 +198,8 @@ def resolve_sources(sources: str | Sequence[str], feature_set: str | None = None
             trees = random_trees(o["n"], nodes, dim, seed=seed)
             if o["unseen"]:
                 try:
-                    extra = unseen_random_tree(trees, nodes, dim, seed=seed + 1)
+                    extra = unseen_random_tree(trees, nodes, dim,
+                                               seed=(seed + 1) % (MAX_SEED + 1))
                 except RuntimeError as e:  # small trees: every shape is among the n
                     raise RobovaeError(f"robovae: {src}: {e}") from None
                 extra.name = "random_unseen"

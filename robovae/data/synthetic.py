@@ -23,6 +23,8 @@ import torch
 from torch import Tensor
 
 from robovae.data.graph import RobotData, tree_data
+from robovae.errors import check_seed
+from robovae.settings import check_settings, integer
 
 __all__ = [
     "SOURCE",
@@ -117,9 +119,14 @@ def random_tree(
 
     Returns:
         a :class:`RobotData` with ``x`` of shape ``[N, d]`` and ``source="synthetic:random"``.
+
+    Raises:
+        SettingsError: ``num_nodes`` or ``dim`` below 1, an integer seed outside
+            ``[0, 2**31 - 1]``.
     """
-    if num_nodes < 1:
-        raise ValueError("num_nodes must be >= 1")
+    check_settings("random_tree", num_nodes=(num_nodes, integer(1)), dim=(dim, integer(1)))
+    if not isinstance(generator, torch.Generator):
+        check_seed(generator, "random_tree seed")
     if name is None:
         name = ("random_tree" if isinstance(generator, torch.Generator)
                 else f"random_tree_{generator}")
@@ -138,7 +145,14 @@ def random_trees(
     Deterministic for a seed, and a prefix-stable stream: the first ``k`` trees of
     ``random_trees(n, seed=s)`` are ``random_trees(k, seed=s)``. Tree ``i`` is named
     ``random_tree_<seed>_<i>``.
+
+    Raises:
+        SettingsError: ``num_graphs`` negative, ``num_nodes`` or ``dim`` below 1, ``seed``
+            outside ``[0, 2**31 - 1]``.
     """
+    check_settings("random_trees", num_graphs=(num_graphs, integer(0)),
+                   num_nodes=(num_nodes, integer(1)), dim=(dim, integer(1)))
+    check_seed(seed, "random_trees seed")
     g = _as_generator(seed)
     return [random_tree(num_nodes, dim, g, name=f"random_tree_{seed}_{i}")
             for i in range(num_graphs)]
@@ -230,7 +244,12 @@ def unseen_random_tree(
     Raises:
         RuntimeError: when ``train`` holds every shape of ``num_nodes`` nodes
             (:data:`TREE_SHAPES`, at once), or ``max_tries`` draws were all seen.
+        SettingsError: ``num_nodes``, ``dim`` or ``max_tries`` below 1, ``seed`` outside
+            ``[0, 2**31 - 1]``.
     """
+    check_settings("unseen_random_tree", num_nodes=(num_nodes, integer(1)),
+                   dim=(dim, integer(1)), max_tries=(max_tries, integer(1)))
+    check_seed(seed, "unseen_random_tree seed")
     shapes = {(t.num_nodes, canonical_form(t)) for t in train}
     seen = {form for _, form in shapes}
     if (num_nodes < len(TREE_SHAPES)

@@ -59,6 +59,7 @@ from robovae.evaluate.quality.locomotion import (
     continuous_actuators,
     gait,
 )
+from robovae.settings import check_settings, integer
 
 __all__ = ["GAIT_TASKS", "SCORE_VERSION", "TASKS", "reach_score", "score_robot", "stand_score",
            "step_score", "walk_gait", "walk_score", "Wheeled"]
@@ -191,7 +192,14 @@ def _deepest_body(model: mujoco.MjModel) -> int:
 
 
 def reach_score(path: str | os.PathLike, seed: int = 0, samples: int = 512) -> dict:
-    """End-effector workspace volume over ``L^3`` of a fixed-base arm (module docstring)."""
+    """End-effector workspace volume over ``L^3`` of a fixed-base arm (module docstring).
+
+    Raises:
+        SettingsError: ``samples`` below 4 (a hull has volume only from 4 points on), ``seed``
+            outside ``[0, 2**31 - 1]``.
+    """
+    check_settings("reach_score", samples=(samples, integer(4)))
+    check_seed(seed, "reach_score seed")
     from scipy.spatial import ConvexHull, QhullError
 
     from robovae.data.loading import load_robot

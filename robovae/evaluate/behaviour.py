@@ -41,10 +41,12 @@ import numpy as np
 
 from robovae.data.loading import capture_mujoco_warnings
 from robovae.data.workers import process_pool
+from robovae.errors import SettingsError, check_seed
 from robovae.evaluate.population import knn_entropy
 from robovae.evaluate.quality.stage import MOVING, prepare
 from robovae.evaluate.quality.stage import unstable as is_unstable
 from robovae.evaluate.quality.standing import standing
+from robovae.settings import check_settings, integer, number
 
 Robot: TypeAlias = str | os.PathLike | mujoco.MjSpec
 
@@ -71,12 +73,21 @@ def state_entropy(robot: Robot, seconds: float = 3.0, rollouts: int = 8, hold: f
         the root from its start at the end of an episode, m), ``seconds`` (simulated per
         episode), ``unstable`` (episodes stopped by NaN or MuJoCo instability warnings),
         ``actuators``. Entropies are NaN for a robot without actuators.
+
+    Raises:
+        SettingsError: ``seconds``, ``hold`` or ``sample_dt`` not > 0, ``rollouts``, ``k`` or
+            ``max_steps`` below 1, ``seed`` outside ``[0, 2**31 - 1]``.
     """
+    positive = number(0, low_open=True)
+    check_settings("state_entropy", seconds=(seconds, positive), rollouts=(rollouts, integer(1)),
+                   hold=(hold, positive), sample_dt=(sample_dt, positive), k=(k, integer(1)),
+                   max_steps=(max_steps, integer(1)))
+    check_seed(seed, "state_entropy seed")
     spec, scene = prepare(robot)
     model = scene.model
     data = mujoco.MjData(model)
     dt = model.opt.timestep
-    seconds = min(seconds, max_steps * dt / max(rollouts, 1))
+    seconds = min(seconds, max_steps * dt / rollouts)
     steps = max(1, round(seconds / dt))
     every_ctrl = max(1, round(hold / dt))
     every_rec = max(1, round(sample_dt / dt))
@@ -139,12 +150,19 @@ def standing_test(robot: Robot, **kwargs: Any) -> dict:
 def behaviour(robot: Robot, entropy: dict | None = None, standing: dict | None = None) -> dict:
     """:func:`state_entropy` and :func:`standing_test` of one robot (keyword arguments in
     ``entropy``/``standing``), as one flat dict; ``error`` holds a one-line message when the
-    robot could not be measured."""
+    robot could not be measured.
+
+    Raises:
+        SettingsError: a setting out of range (:func:`state_entropy`, :func:`standing_test`):
+            the settings' fault, not the robot's.
+    """
     out: dict = {"robot": str(robot) if not isinstance(robot, mujoco.MjSpec) else
                  robot.modelname}
     try:
         out.update(state_entropy(robot, **(entropy or {})))
         out.update(standing_test(robot, **(standing or {})))
+    except SettingsError:
+        raise
     except Exception as e:  # a bad robot must not stop a population
         out["error"] = " ".join(f"{type(e).__name__}: {e}".split())
     return out
@@ -158,7 +176,12 @@ def _behaviour_item(item: tuple) -> dict:
 def behaviour_many(paths: Sequence[str | Path], jobs: int = 1, entropy: dict | None = None,
                    standing: dict | None = None) -> list[dict]:
     """:func:`behaviour` of many robot files, in ``jobs`` worker processes (``0``: all cores;
-    started with ``spawn``, like generation's workers)."""
+    started with ``spawn``, like generation's workers).
+
+    Raises:
+        SettingsError: ``jobs`` negative, or a setting of :func:`behaviour` out of range.
+    """
+    check_settings("behaviour_many", jobs=(jobs, integer(0)))
     items = [(str(p), entropy, standing) for p in paths]
     jobs = jobs or (os.cpu_count() or 1)
     if jobs <= 1 or len(items) < 2:

@@ -23,6 +23,7 @@ import lightning as L
 from torch_geometric.data import Batch, Data
 
 from robovae.evaluate.metrics import Reconstruction, reconstruction_metrics, summarize
+from robovae.settings import check_settings, integer
 
 if TYPE_CHECKING:
     from robovae.model.vae import RoboVAE
@@ -79,11 +80,16 @@ class ReconstructionMetrics(L.Callback):
         every_n_epochs: validation epochs between two scorings (the last epoch always counts).
         per_robot: also log one value per robot (at most ``max_per_robot`` robots).
         max_per_robot: cap on per-robot keys.
+
+    Raises:
+        SettingsError: ``every_n_epochs`` below 1, ``max_per_robot`` negative.
     """
 
     def __init__(self, every_n_epochs: int = 10, per_robot: bool = True,
                  max_per_robot: int = 64) -> None:
-        self.every_n_epochs = max(1, every_n_epochs)
+        check_settings("ReconstructionMetrics", every_n_epochs=(every_n_epochs, integer(1)),
+                       max_per_robot=(max_per_robot, integer(0)))
+        self.every_n_epochs = every_n_epochs
         self.per_robot = per_robot
         self.max_per_robot = max_per_robot
         self.last: dict[str, list[Reconstruction]] = {}

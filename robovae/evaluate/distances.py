@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from robovae.errors import SettingsError, is_integer
+
 __all__ = ["ROWS", "kth_nearest", "sqdist"]
 
 #: Rows of a pairwise block held at once by :func:`kth_nearest` (memory ``ROWS × N`` floats).
@@ -25,9 +27,21 @@ def sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.maximum(d, 0.0, out=d)
 
 
+def _neighbour_rank(k: object, n: int) -> bool:
+    """Whether ``k`` is a neighbour rank among ``n`` points: an integer in ``[1, n - 1]``."""
+    return is_integer(k) and 1 <= int(k) < n
+
+
 def kth_nearest(x: np.ndarray, k: int) -> np.ndarray:
     """Distance from each row of ``x`` to its ``k``-th nearest other row (``1 <= k < len(x)``),
-    in blocks of :data:`ROWS` rows."""
+    in blocks of :data:`ROWS` rows.
+
+    Raises:
+        SettingsError: ``k`` outside ``[1, len(x) - 1]``.
+    """
+    if not _neighbour_rank(k, len(x)):
+        raise SettingsError(f"robovae: kth_nearest.k must be an integer in [1, {len(x) - 1}] "
+                            f"for {len(x)} points, got {k!r}")
     out = np.empty(len(x))
     for start in range(0, len(x), ROWS):
         block = sqdist(x[start:start + ROWS], x)

@@ -36,6 +36,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
+from robovae.errors import check_seed
 from robovae.evaluate.descriptors import (
     COUNT_DESCRIPTORS,
     DESCRIPTORS,
@@ -44,6 +45,7 @@ from robovae.evaluate.descriptors import (
     descriptor_table,
 )
 from robovae.evaluate.distances import kth_nearest, sqdist
+from robovae.settings import check_settings, integer, number
 
 __all__ = ["compare", "coverage", "gaussian_entropy", "histogram_kl", "knn_entropy",
            "latent_stats", "ledoit_wolf", "mmd_rbf", "participation_ratio", "pca", "standardize",
@@ -96,6 +98,10 @@ def summary(records: Sequence[dict], names: Sequence[str] = DESCRIPTORS) -> dict
 # divergences between populations
 
 
+#: rules of :func:`histogram_kl`'s settings (its ``integer`` argument hides the rule's name)
+_BINS, _POSITIVE = integer(1), number(0, low_open=True)
+
+
 def histogram_kl(p: Sequence[float], q: Sequence[float], bins: int | np.ndarray = 10,
                  integer: bool = False, log: bool = False, pseudo: float = 0.5) -> float:
     """``KL(P ‖ Q)`` (nats) of two samples of one scalar, from histograms on shared bins.
@@ -104,7 +110,12 @@ def histogram_kl(p: Sequence[float], q: Sequence[float], bins: int | np.ndarray 
     ``bins`` equal-width bins over the pooled range (of ``log10`` values with ``log``). NaNs are
     dropped; ``pseudo`` is added to every bin count (0.5: Jeffreys prior). NaN when either
     sample is empty.
+
+    Raises:
+        SettingsError: ``bins`` (an integer) below 1, ``pseudo`` not a number > 0.
     """
+    check_settings("histogram_kl", pseudo=(pseudo, _POSITIVE),
+                   **({} if isinstance(bins, np.ndarray) else {"bins": (bins, _BINS)}))
     a = np.asarray(p, dtype=float)
     b = np.asarray(q, dtype=float)
     a, b = a[~np.isnan(a)], b[~np.isnan(b)]
@@ -157,7 +168,14 @@ def mmd_rbf(x: np.ndarray, y: np.ndarray, bandwidth: float | None = None,
     ``K V`` per :data:`BATCH` of them, and memory stays at the one ``(n + m)²`` matrix.
 
     Returns ``{"mmd2", "bandwidth", "p_value"}``.
+
+    Raises:
+        SettingsError: ``bandwidth`` not a number > 0 (or None), ``permutations`` negative,
+            ``seed`` outside ``[0, 2**31 - 1]``.
     """
+    check_settings("mmd_rbf", bandwidth=(bandwidth, number(0, low_open=True).or_none()),
+                   permutations=(permutations, integer(0)))
+    check_seed(seed, "mmd_rbf seed")
     x, y = np.asarray(x, float), np.asarray(y, float)
     n, m = len(x), len(y)
     if n < 2 or m < 2:
@@ -203,7 +221,11 @@ def coverage(train: np.ndarray, samples: np.ndarray, threshold: float | None = N
 
     ``threshold`` defaults to the median nearest-neighbour distance among the training points.
     Returns ``{"coverage", "precision", "threshold", "mean_nearest_sample"}``.
+
+    Raises:
+        SettingsError: ``threshold`` not a number >= 0 (or None).
     """
+    check_settings("coverage", threshold=(threshold, number(0).or_none()))
     train, samples = np.asarray(train, float), np.asarray(samples, float)
     if len(train) == 0 or len(samples) == 0:
         return {"coverage": math.nan, "precision": math.nan, "threshold": math.nan,
@@ -235,7 +257,14 @@ def compare(train: Sequence[dict], samples: Sequence[dict], permutations: int = 
     The KLs use every training record; MMD² and coverage use at most ``max_reference`` of
     them, drawn without replacement with ``seed`` (an unbiased MMD² estimate of the same
     distribution; ``"reference"`` says how many).
+
+    Raises:
+        SettingsError: as :func:`mmd_rbf` and :func:`coverage`, or ``max_reference`` below 2.
     """
+    check_settings("compare", permutations=(permutations, integer(0)),
+                   threshold=(threshold, number(0).or_none()),
+                   max_reference=(max_reference, integer(2)))
+    check_seed(seed, "compare seed")
     kl = {}
     for n in DESCRIPTORS:
         kl[n] = histogram_kl([r[n] for r in train], [r[n] for r in samples],
@@ -273,14 +302,19 @@ def knn_entropy(x: np.ndarray, k: int = 3, min_distance: float = 1e-9) -> float:
     ``min_distance`` are raised to it (repeated points would give ``-inf``). Consistent as
     ``N → ∞``; biased for small ``N`` in high ``d`` (compare populations of equal size).
     ``k`` is lowered to ``N - 1`` for tiny samples; NaN below 2 points.
+
+    Raises:
+        SettingsError: ``k`` below 1, ``min_distance`` not a number > 0.
     """
+    check_settings("knn_entropy", k=(k, integer(1)),
+                   min_distance=(min_distance, number(0, low_open=True)))
     x = np.asarray(x, dtype=float)
     if x.ndim == 1:
         x = x[:, None]
     n, d = x.shape
     if n < 2 or d == 0:
         return math.nan
-    k = max(1, min(k, n - 1))
+    k = min(k, n - 1)
     eps = np.maximum(kth_nearest(x, k), min_distance)
     log_vd = 0.5 * d * math.log(math.pi) - math.lgamma(0.5 * d + 1.0)
     return float(_digamma(n) - _digamma(k) + log_vd + d * np.mean(np.log(eps)))

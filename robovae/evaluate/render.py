@@ -93,11 +93,21 @@ def _match_backend() -> None:
     gl_context._MUJOCO_GL = wanted
 
 
+def _check_image(name: str, width: object, height: object, settle_seconds: object) -> None:
+    """Refuse an image size below one pixel or a negative settling time (one line)."""
+    check_settings(name, width=(width, integer(1)), height=(height, integer(1)),
+                   settle_seconds=(settle_seconds, number(0)))
+
+
 def _make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
     _match_backend()
     try:
         return mujoco.Renderer(model, height=height, width=width)
     except Exception as e:  # GL context creation fails in many ways (ImportError, EGL errors)
+        if "framebuffer is not complete" in str(e):  # the context exists, the size does not fit
+            raise RuntimeError(f"robovae: a {width}×{height} image is larger than the OpenGL "
+                               f"driver renders off-screen (MUJOCO_GL={_gl_backend()}; Mesa: "
+                               f"16384 px a side): {type(e).__name__}: {e}") from e
         raise RuntimeError(f"robovae: off-screen rendering unavailable (MUJOCO_GL="
                            f"{_gl_backend() or '<unset>'}): {type(e).__name__}: {e}") from e
 
@@ -139,8 +149,11 @@ def render_robot(model_or_path: Robot, width: int = 480, height: int = 360,
 
     Raises:
         RobotFileError: the file cannot be loaded.
-        RuntimeError: no off-screen OpenGL context (see the module docstring).
+        RuntimeError: no off-screen OpenGL context (see the module docstring), or an image
+            larger than the driver renders.
+        SettingsError: ``width`` or ``height`` below 1, ``settle_seconds`` negative.
     """
+    _check_image("render_robot", width, height, settle_seconds)
     prep = prepare(model_or_path, width, height, floor=floor)
     settle(prep, settle_seconds)
     cam = resolve_camera(prep.model, prep.data, camera, width / height)
@@ -149,7 +162,9 @@ def render_robot(model_or_path: Robot, width: int = 480, height: int = 360,
 
 def robot_camera(model_or_path: Robot, width: int = 480, height: int = 360,
                  settle_seconds: float = 0.0) -> dict[str, Any]:
-    """The automatic camera :func:`render_robot` would use (e.g. to render others alike)."""
+    """The automatic camera :func:`render_robot` would use (e.g. to render others alike);
+    settings as there."""
+    _check_image("robot_camera", width, height, settle_seconds)
     prep = prepare(model_or_path, width, height)
     settle(prep, settle_seconds)
     return resolve_camera(prep.model, prep.data, None, width / height)
@@ -280,9 +295,11 @@ def side_by_side(original: Robot, reconstruction: Robot, path: str | os.PathLike
                  size: tuple[int, int] = (480, 360), settle_seconds: float = 0.0) -> Path:
     """Render two robots from the same camera (fitted to ``original``) next to each other,
     like the paper's Figure 4. Writes a ``(2w) × h`` PNG and returns its path (a path that
-    cannot be written: :class:`RobovaeError` before any rendering)."""
-    writable_file(path, "picture")
+    cannot be written: :class:`RobovaeError` before any rendering; a size below one pixel or a
+    negative ``settle_seconds``: ``SettingsError``)."""
     w, h = size
+    _check_image("side_by_side", w, h, settle_seconds)
+    writable_file(path, "picture")
     prep = prepare(original, w, h)
     settle(prep, settle_seconds)
     cam = resolve_camera(prep.model, prep.data, None, w / h)

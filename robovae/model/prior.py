@@ -18,6 +18,8 @@ import numpy as np
 import torch
 
 from robovae.data.graph import RobotData
+from robovae.errors import check_seed
+from robovae.settings import check_settings, integer, number
 
 
 class PriorModel(Protocol):
@@ -48,10 +50,25 @@ def latent_rng(seed: int, index: int, draw: int = 0) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(key)))
 
 
+def _check_stream(name: str, seed: int, index: int, dim: int, temperature: float, draw: int,
+                  **sizes: int) -> None:
+    """Refuse a robot stream's arguments out of range (one line, :mod:`robovae.settings`)."""
+    check_seed(seed, f"{name} seed")
+    check_settings(name, index=(index, integer(0)), dim=(dim, integer(0)),
+                   temperature=(temperature, number(0)), draw=(draw, integer(0)),
+                   **{k: (v, integer(0)) for k, v in sizes.items()})
+
+
 def latent(seed: int, index: int, dim: int, temperature: float = 1.0,
            draw: int = 0) -> torch.Tensor:
     """The latent of robot ``index`` of a run with ``seed`` under the standard normal prior:
-    ``N(0, T² I)``, ``[dim]`` float32, from :func:`latent_rng`."""
+    ``N(0, T² I)``, ``[dim]`` float32, from :func:`latent_rng`.
+
+    Raises:
+        SettingsError: ``seed`` outside ``[0, 2**31 - 1]``, ``index``, ``dim`` or ``draw``
+            negative, ``temperature`` negative or not finite.
+    """
+    _check_stream("latent", seed, index, dim, temperature, draw)
     rng = latent_rng(seed, index, draw)
     return torch.from_numpy(rng.standard_normal(dim).astype(np.float32)) * temperature
 
@@ -120,7 +137,12 @@ def node_noise(seed: int, index: int, max_nodes: int, dim: int,
                temperature: float = 1.0) -> torch.Tensor:
     """The node-latent noise of robot ``index``: ``[max_nodes, dim]`` standard normals times
     ``T`` from the robot's second stream (``(seed, index, 1)``), so its node ``t`` draws
-    ``w_t = mu^p + sigma^p eps_t`` whatever the batch."""
+    ``w_t = mu^p + sigma^p eps_t`` whatever the batch.
+
+    Raises:
+        SettingsError: as :func:`latent` (``max_nodes`` and ``dim`` negative).
+    """
+    _check_stream("node_noise", seed, index, dim, temperature, 0, max_nodes=max_nodes)
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, index, 1])))
     eps = rng.standard_normal((max_nodes, dim)).astype(np.float32)
     return torch.from_numpy(eps) * temperature

@@ -209,3 +209,20 @@ def test_surgery_transform_rebuilds_a_batch_by_its_seed():
         s.seed(seed)
         shapes.append([_shape(d) for d in s(b).to_data_list()])
     assert shapes[0] == shapes[1] and shapes[0] != shapes[2]
+
+
+@pytest.mark.parametrize("build, bad", [
+    (lambda: FeatureJitter("paper34", float("nan"), 0.1), "FeatureJitter.shift"),
+    (lambda: FeatureJitter("paper34", 0.1, -0.5), "FeatureJitter.noise"),
+    (lambda: TreeSurgery("paper34", 2.0), "TreeSurgery.prob"),
+    (lambda: TreeSurgery("paper34", float("nan")), "TreeSurgery.prob"),
+    (lambda: TreeSurgery("paper34", 0.5, max_ops=0), "TreeSurgery.max_ops"),
+    (lambda: TreeSurgery("paper34", 0.5, max_nodes=0), "TreeSurgery.max_nodes"),
+])
+def test_transforms_refuse_settings_out_of_range(build, bad) -> None:
+    """Used directly (not through the datamodule's checked config), a NaN shift would train on
+    NaN inputs and a probability of 2 would edit every robot: refused in one line."""
+    from robovae.errors import SettingsError
+
+    with pytest.raises(SettingsError, match=bad):
+        build()

@@ -165,3 +165,29 @@ def _d(parent: list[int]) -> RobotData:
     """A ``random2`` tree with the given parent vector and zero features."""
     n = len(parent)
     return tree_data(parent, [0] * n, torch.zeros(n, 2), "random2")
+
+
+@pytest.mark.parametrize("call, bad", [
+    (lambda: random_trees(-1), "random_trees.num_graphs"),
+    (lambda: random_trees(2, num_nodes=0), "random_trees.num_nodes"),
+    (lambda: random_trees(2, dim=0), "random_trees.dim"),  # was a KeyError of feature sets
+    (lambda: random_trees(2, dim=-1), "random_trees.dim"),  # was a torch RuntimeError
+    (lambda: random_trees(2, seed=-1), "random_trees seed"),
+    (lambda: random_tree(0, 5, 0), "random_tree.num_nodes"),
+    (lambda: random_tree(3, 5, -2), "random_tree seed"),
+    (lambda: unseen_random_tree([], 5, seed=0, max_tries=0), "unseen_random_tree.max_tries"),
+])
+def test_random_trees_refuse_bad_arguments_in_one_line(call, bad) -> None:
+    from robovae.errors import SettingsError
+
+    with pytest.raises(SettingsError, match=bad):
+        call()
+
+
+def test_unseen_tree_of_the_largest_seed() -> None:
+    """``synthetic:…,seed=2147483647,unseen=1`` draws its unseen tree from seed 0 (the next seed
+    wraps round), not from a seed out of range."""
+    from robovae.data.sources import resolve_sources
+
+    graphs = resolve_sources(["synthetic:n=3,nodes=6,seed=2147483647,unseen=1"]).graphs
+    assert len(graphs) == 4 and graphs[-1].name == "random_unseen"

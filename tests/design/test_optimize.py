@@ -30,7 +30,7 @@ from robovae.design.score import Wheeled, reach_score, score_robot, walk_gait, w
 from robovae.envs import WALK_ID
 from robovae.envs.gait import SinusoidGait, replay
 from robovae.envs.walk import walk_scene
-from robovae.errors import RobovaeError
+from robovae.errors import RobovaeError, SettingsError
 from robovae.evaluate.quality.locomotion import continuous_actuators, gait
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.writer import write_robot
@@ -121,6 +121,10 @@ def test_reach_volume_grows_with_the_arms_freedom(tmp_path):
         vols.append(reach_score(path, samples=256)["volume"])
     assert vols[0] == 0.0  # one hinge sweeps an arc: a flat hull, no volume
     assert 1e-3 < vols[1] < vols[2]
+    # samples=0 scored 0.0 as if measured, -3 was a NumPy traceback: refused in one line
+    for samples in (0, 3, -3):
+        with pytest.raises(SettingsError, match=r"reach_score\.samples must be an integer >= 4"):
+            reach_score(path, samples=samples)
 
 
 def test_best_so_far():

@@ -127,3 +127,31 @@ def test_behaviour_rows_and_summary(tmp_path) -> None:
     one = behaviour(quadruped(weak=True), entropy=kw)
     assert one["robot"] == "proc_quadruped_00003" and one["stands"] is False
     assert math.isnan(summarize_behaviour([])["standing_rate"])
+
+
+@pytest.mark.parametrize("kw, bad", [
+    ({"seconds": -1.0}, "state_entropy.seconds"), ({"rollouts": 0}, "state_entropy.rollouts"),
+    ({"hold": float("nan")}, "state_entropy.hold"), ({"sample_dt": 0.0}, "state_entropy.sample_dt"),
+    ({"k": 0}, "state_entropy.k"), ({"seed": -1}, "state_entropy seed"),
+    ({"max_steps": 0}, "state_entropy.max_steps"),
+])
+def test_state_entropy_refuses_settings_out_of_range(kw, bad) -> None:
+    """Negative seconds measured one step, zero rollouts NaN entropies, a NaN hold a
+    traceback: refused in one line, before the robot is loaded."""
+    from robovae.errors import SettingsError
+
+    with pytest.raises(SettingsError, match=bad):
+        state_entropy(ZOO["gym_ant"], **kw)
+
+
+def test_bad_settings_stop_a_population_instead_of_failing_every_robot(tmp_path) -> None:
+    """A robot that cannot be measured is a row with ``error``; settings out of range are the
+    caller's mistake, the same for every robot, and raise (they were an error row per robot)."""
+    from robovae.errors import SettingsError
+
+    with pytest.raises(SettingsError, match="state_entropy.rollouts"):
+        behaviour(ZOO["gym_ant"], entropy={"rollouts": 0})
+    with pytest.raises(SettingsError, match="standing.seconds"):
+        behaviour_many([ZOO["gym_ant"]], jobs=1, entropy=FAST, standing={"seconds": -1.0})
+    with pytest.raises(SettingsError, match="behaviour_many.jobs"):
+        behaviour_many([ZOO["gym_ant"]], jobs=-1)

@@ -30,3 +30,22 @@ def test_kth_nearest_excludes_the_point_itself_across_blocks():
         assert np.allclose(knn_radii(x, k), want, atol=1e-9)
     assert kth_nearest(x, 1)[5] < 1e-6
     assert knn_radii(x[:1], 3).tolist() == [0.0] and len(knn_radii(x[:2], 3)) == 2
+
+
+def test_a_neighbour_rank_out_of_range_is_refused():
+    """``k = 0`` gave every point an infinite radius (precision and recall then read 1.0), ``k``
+    beyond the points a NumPy traceback: refused, naming the function and setting."""
+    import pytest
+
+    from robovae.errors import SettingsError
+    from robovae.evaluate.quality.distribution import precision_recall
+
+    x = np.eye(4)
+    for k in (0, 4, 2.5):
+        with pytest.raises(SettingsError, match=r"kth_nearest\.k must be an integer in \[1, 3\]"):
+            kth_nearest(x, k)
+    with pytest.raises(SettingsError, match=r"knn_radii\.k"):
+        knn_radii(x, 0)
+    with pytest.raises(SettingsError, match=r"precision_recall\.k"):
+        precision_recall(x, x, k=0)
+    assert knn_radii(x, 10).shape == (4,)  # above the points: capped, as documented

@@ -241,3 +241,29 @@ def test_ledoit_wolf_and_pca() -> None:
     # few points in many dimensions: shrunk towards mu·I, full rank
     cov, s = ledoit_wolf(x[:4] @ rng.normal(size=(3, 10)))
     assert 0.0 < s <= 1.0 and np.linalg.matrix_rank(cov) == 10
+
+
+@pytest.mark.parametrize("call, bad", [
+    (lambda x, y: mmd_rbf(x, y, permutations=-1), "mmd_rbf.permutations"),
+    (lambda x, y: mmd_rbf(x, y, bandwidth=0.0), "mmd_rbf.bandwidth"),
+    (lambda x, y: mmd_rbf(x, y, bandwidth=float("nan")), "mmd_rbf.bandwidth"),
+    (lambda x, y: mmd_rbf(x, y, seed=-1), "mmd_rbf seed"),
+    (lambda x, y: coverage(x, y, threshold=-1.0), "coverage.threshold"),
+    (lambda x, y: knn_entropy(x, k=0), "knn_entropy.k"),
+    (lambda x, y: knn_entropy(x, min_distance=0.0), "knn_entropy.min_distance"),
+    (lambda x, y: histogram_kl(x[:, 0], y[:, 0], bins=0), "histogram_kl.bins"),
+    (lambda x, y: histogram_kl(x[:, 0], y[:, 0], pseudo=0.0), "histogram_kl.pseudo"),
+    (lambda x, y: compare([], [], permutations=-1), "compare.permutations"),
+    (lambda x, y: compare([], [], max_reference=1), "compare.max_reference"),
+])
+def test_statistics_refuse_settings_out_of_range(call, bad) -> None:
+    """A bandwidth of 0 gave MMD² 0 with p = 1 (the populations "the same"), a NaN one a NaN
+    MMD² with p = 0.005, a negative threshold coverage 0, ``k = 0`` an entropy (the
+    estimator is undefined there), ``bins = 0`` a KL of 0: refused in one line instead."""
+    from robovae.errors import SettingsError
+
+    rng = np.random.default_rng(0)
+    x, y = rng.normal(size=(20, 3)), rng.normal(size=(20, 3)) + 0.1
+    with pytest.raises(SettingsError, match=bad):
+        call(x, y)
+    assert math.isnan(mmd_rbf(x, y, permutations=0)["p_value"])  # 0 permutations: documented

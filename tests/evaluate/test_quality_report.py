@@ -156,3 +156,14 @@ def test_corpus_files_rebuild_procedural_training_robots(tmp_path):
     assert Path(files[1]).read_text() == procedural_spec(2, "quadruped").to_xml()
     assert corpus_files(sources, names, 10, tmp_path)[0][-1] == "/some/robot.xml"
     assert corpus_files([None], ["x"], 3, tmp_path) == ([], [])
+
+
+def test_measure_refuses_bad_settings_instead_of_an_error_per_robot() -> None:
+    from robovae.errors import SettingsError
+
+    with pytest.raises(SettingsError, match="standing.seconds"):
+        measure(ZOO["gym_ant"], describe=False, stand_kw={"seconds": -1.0})
+    with pytest.raises(SettingsError, match="budget_gait.search"):
+        measure(ZOO["gym_ant"], describe=False, locomotion=True, gait_search="grid")
+    with pytest.raises(SettingsError, match="measure_many.jobs"):
+        measure_many([ZOO["gym_ant"]], jobs=-1, progress=False)

@@ -312,3 +312,23 @@ def test_mujoco_imported_before_the_module_still_renders() -> None:
                          text=True, timeout=120)
     assert got.returncode == 0, got.stderr[-2000:]
     assert got.stdout.strip() == "True"
+
+
+def test_render_sizes_out_of_range(tmp_path: Path) -> None:
+    """A width of 0 returned an empty image, -5 was a NumPy traceback; an image wider than the
+    GL driver's framebuffers (40,000 px: more than any driver's 16,384 or 32,768) was reported
+    as "off-screen rendering unavailable", as if there were no OpenGL at all."""
+    from robovae.errors import SettingsError
+
+    spec = _legged_spec()
+    for w, h in ((0, 24), (-5, 24), (32, 2.5)):
+        with pytest.raises(SettingsError, match=r"render_robot\.(width|height) must be an integer"):
+            R.render_robot(spec, w, h)
+    with pytest.raises(SettingsError, match=r"robot_camera\.settle_seconds"):
+        R.robot_camera(spec, settle_seconds=-1.0)
+    with pytest.raises(SettingsError, match=r"side_by_side\.height"):
+        R.side_by_side(spec, spec, tmp_path / "s.png", size=(32, 0))
+    assert not (tmp_path / "s.png").exists()
+    with pytest.raises(RuntimeError, match=r"a 40000×8 image is larger than the OpenGL driver "
+                                           r"renders off-screen"):
+        R.render_robot(spec, 40_000, 8)

@@ -36,3 +36,21 @@ def test_redraws_replace_unfinished_trees_only(trained):
     assert d2 == [0, 0] and torch.equal(again[0].parent, draw_robots(model, 0, [5])[1][0].parent)
     z_b, _, d_b = draw_robots(model, 0, [7, 2], redraws=6)
     assert d_b == [draws[7], draws[2]] and torch.equal(z_b[0], z[7])
+
+
+def test_robot_streams_refuse_arguments_out_of_range() -> None:
+    """A negative seed was NumPy's "expected non-negative integer" traceback, a negative
+    temperature a latent of the opposite sign: refused, naming the setting."""
+    import pytest
+
+    from robovae.errors import SettingsError
+    from robovae.model.prior import node_noise
+
+    for kw, bad in (({"seed": -1}, "latent seed"), ({"temperature": -1.0}, "latent.temperature"),
+                    ({"temperature": float("nan")}, "latent.temperature"),
+                    ({"index": -3}, "latent.index"), ({"draw": -1}, "latent.draw")):
+        with pytest.raises(SettingsError, match=bad):
+            latent(**{"seed": 0, "index": 0, "dim": 4, **kw})
+    with pytest.raises(SettingsError, match="node_noise.max_nodes"):
+        node_noise(0, 0, -1, 4)
+    assert latent(0, 0, 4, temperature=0.0).abs().sum() == 0  # temperature 0: the prior's mean

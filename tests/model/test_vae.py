@@ -305,3 +305,13 @@ def test_cli_refuses_an_invalid_model_setting_in_one_line(setting, message, tmp_
     assert "\n" not in err and "Traceback" not in err, err
     assert err.startswith(f"robovae: {tiny}: invalid setting: {message}"), err
     assert not (tmp_path / "runs").exists()
+
+
+def test_reconstruction_callback_refuses_settings_out_of_range():
+    """``every_n_epochs=0`` was silently read as 1."""
+    from robovae.errors import SettingsError
+
+    with pytest.raises(SettingsError, match=r"ReconstructionMetrics\.every_n_epochs"):
+        ReconstructionMetrics(every_n_epochs=0)
+    with pytest.raises(SettingsError, match=r"ReconstructionMetrics\.max_per_robot"):
+        ReconstructionMetrics(max_per_robot=-1)

@@ -25,7 +25,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from robovae.errors import check_seed
 from robovae.evaluate.distances import kth_nearest, sqdist
+from robovae.settings import check_settings, integer
 
 __all__ = ["knn_radii", "precision_recall", "split_half", "wasserstein_1d"]
 
@@ -50,7 +52,13 @@ def wasserstein_1d(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndar
 
 def split_half(x: Sequence[float] | np.ndarray, repeats: int = 20, seed: int = 0) -> float:
     """Mean W1 between two random halves of ``x`` over ``repeats`` splits (seeded); NaN below
-    two values."""
+    two values.
+
+    Raises:
+        SettingsError: ``repeats`` below 1, ``seed`` outside ``[0, 2**31 - 1]``.
+    """
+    check_settings("split_half", repeats=(repeats, integer(1)))
+    check_seed(seed, "split_half seed")
     v = np.asarray(x, dtype=float).ravel()
     v = v[~np.isnan(v)]
     if v.size < 2:
@@ -66,7 +74,12 @@ def split_half(x: Sequence[float] | np.ndarray, repeats: int = 20, seed: int = 0
 
 def knn_radii(x: np.ndarray, k: int = 3) -> np.ndarray:
     """Distance from each row of ``x`` to its k-th nearest other row (``k`` capped at
-    ``len(x) - 1``; a single point gets radius 0)."""
+    ``len(x) - 1``; a single point gets radius 0).
+
+    Raises:
+        SettingsError: ``k`` below 1.
+    """
+    check_settings("knn_radii", k=(k, integer(1)))
     n = len(x)
     if n < 2:
         return np.zeros(n)
@@ -79,8 +92,9 @@ def precision_recall(reference: np.ndarray, samples: np.ndarray, k: int = 3
     (module docstring); NaN for an empty set.
 
     Raises:
-        ValueError: the two sets have different widths.
+        ValueError: the two sets have different widths. SettingsError: ``k`` below 1.
     """
+    check_settings("precision_recall", k=(k, integer(1)))
     reference, samples = np.atleast_2d(reference), np.atleast_2d(samples)
     if reference.shape[1] != samples.shape[1]:
         raise ValueError(f"precision_recall: {reference.shape[1]} and {samples.shape[1]} "

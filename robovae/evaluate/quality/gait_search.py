@@ -35,7 +35,7 @@ import numpy as np
 from robovae.errors import check_seed
 from robovae.evaluate.quality.locomotion import GaitResult, GaitTrials, gait, random_gaits
 from robovae.evaluate.quality.stage import Robot
-from robovae.settings import check_settings, integer, number, span
+from robovae.settings import check_settings, choice, integer, number, span
 
 __all__ = ["GAIT_SEARCHES", "budget_gait", "searched_gait", "trials_search"]
 
@@ -137,11 +137,11 @@ def budget_gait(robot: Robot, search: str = "random", rollouts: int = 64,
     (``seconds``, ``seed``, ``frequency``, ``settle``, ``max_steps``, ``max_tilt``).
 
     Raises:
-        ValueError: an unknown ``search`` or ``rollouts`` below 1.
+        SettingsError: an unknown ``search`` or ``rollouts`` below 1 (and the settings of
+            the search called).
     """
-    if search not in GAIT_SEARCHES or rollouts < 1:
-        raise ValueError(f"budget_gait: search must be one of {', '.join(GAIT_SEARCHES)} "
-                         f"(got {search!r}) and rollouts >= 1 (got {rollouts})")
+    check_settings("budget_gait", search=(search, choice(GAIT_SEARCHES)),
+                   rollouts=(rollouts, integer(1)))
     if search == "random":
         return gait(robot, rollouts=rollouts, **kw)
     first = max(1, rollouts // 4)

@@ -41,12 +41,14 @@ from typing import Any, ParamSpec, TypeVar
 import mujoco
 
 from robovae.data.workers import process_pool
+from robovae.errors import SettingsError
 from robovae.evaluate.quality.attachment import attachment
 from robovae.evaluate.quality.gait_search import budget_gait
 from robovae.evaluate.quality.locomotion import continuous_actuators
 from robovae.evaluate.quality.stage import Robot, Stage, prepare, stage
 from robovae.evaluate.quality.standing import HeldRun, standing
 from robovae.evaluate.quality.symmetry import anatomy
+from robovae.settings import check_settings, integer
 
 __all__ = ["QUALITY_KEYS", "measure", "measure_many", "robot_quality"]
 
@@ -79,7 +81,14 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
     name or the file stem (the folder for ``robot_<i>/robot.xml``), ``""`` for a model.
     ``held``: the standing test's simulation of ``robot`` (a stage) already begun by the
     validator (:func:`robovae.generate.validate.check_robot`), continued instead of run again
-    (ignored when ``stand_kw`` changes the hold)."""
+    (ignored when ``stand_kw`` changes the hold).
+
+    A robot that cannot be measured gets ``error`` (one line) in its record.
+
+    Raises:
+        SettingsError: a setting of ``gait_kw``, ``stand_kw`` or ``gait_search`` out of range
+            (every robot would fail alike).
+    """
     compiled = isinstance(robot, (Stage, mujoco.MjModel))
     if name is None:
         if isinstance(robot, (Stage, mujoco.MjModel)):  # compiled, spelled out to narrow robot
@@ -119,6 +128,8 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
         if locomotion:
             g = _timed(out, "gait", budget_gait, st, gait_search, **(gait_kw or {}))
             out.update(gait_speed=g.speed, gait_speed_m_s=g.speed_m_s)
+    except SettingsError:  # the settings' fault, not the robot's: every robot would fail
+        raise
     except Exception as e:  # noqa: BLE001 - one bad robot must not stop a population
         out["error"] = " ".join(f"{type(e).__name__}: {e}".split())
     return out
@@ -146,7 +157,12 @@ def measure_many(robots: Sequence[str | os.PathLike | mujoco.MjSpec], jobs: int 
     labelled ``desc``; robot ``k`` is called ``names[k]`` when given. ``pool``: worker
     processes already started (:func:`~robovae.data.workers.process_pool`, left running), for
     callers that measure several populations: each new worker spends seconds importing torch
-    and PyG (for the graph descriptors) before its first robot."""
+    and PyG (for the graph descriptors) before its first robot.
+
+    Raises:
+        SettingsError: ``jobs`` negative, or a setting of :func:`measure` out of range.
+    """
+    check_settings("measure_many", jobs=(jobs, integer(0)))
     from tqdm.auto import tqdm
 
     items = [(r, names[k] if names is not None else None, kw) for k, r in enumerate(robots)]
