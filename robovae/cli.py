@@ -66,7 +66,7 @@ def cmd_generate(args: argparse.Namespace) -> int:
     from robovae.options import check_generate, check_like  # before the heavy imports
 
     if args.like:
-        check_like(args.radius, args.n, args.redraws, args.seed)
+        check_like(args.radius, args.n, args.redraws, args.seed, jobs=args.jobs)
         from robovae.design.variations import generate_like
 
         report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
@@ -115,7 +115,7 @@ def cmd_optimize(args: argparse.Namespace) -> int:
 
     check_optimize(args.task, args.budget, args.top, args.variance, args.population,  # before
                    args.score_sets, args.restart_after, args.local_step, args.distinct,  # torch
-                   args.seed)
+                   args.seed, args.jobs)
     from robovae.design.optimize import METHODS, optimize
     from robovae.design.score import GAIT_TASKS
 

@@ -25,7 +25,7 @@ from robovae.errors import SettingsError, check_count, check_seed, is_integer
 from robovae.settings import number
 
 __all__ = ["check_analyze", "check_generate", "check_interpolate", "check_like", "check_optimize",
-           "option_int", "source_options"]
+           "check_variance", "option_int", "source_options"]
 
 
 def source_options(where: str, arg: str, keys: Sequence[str]) -> dict[str, str]:
@@ -95,13 +95,17 @@ def check_generate(n: object, temperature: object = 1.0, node_temperature: objec
     check_seed(seed)
 
 
-def check_like(radius: object, n: object, redraws: object = 4, seed: object = 0) -> None:
+def check_like(radius: object, n: object, redraws: object = 4, seed: object = 0,
+               variance: object = 0.95, jobs: object = 0) -> None:
     """``robovae generate --like``: ``radius`` finite and ``>= 0``, ``n >= 1``, ``redraws``
-    an integer ``>= 0``, ``seed`` in ``[0, MAX_SEED]``."""
+    and ``jobs`` integers ``>= 0``, ``seed`` in ``[0, MAX_SEED]``, ``variance`` in ``(0, 1]``
+    (:func:`check_variance`)."""
     _finite("--radius", radius)
     check_count("-n", n, 1)
     check_count("--redraws", redraws, 0)
     check_seed(seed)
+    check_variance(variance)
+    check_count("--jobs", jobs, 0)
 
 
 def check_interpolate(steps: object) -> None:
@@ -111,39 +115,46 @@ def check_interpolate(steps: object) -> None:
                             f"ends and the robots between), got {steps!r}")
 
 
-def check_optimize(task: str, budget: int, top: int = 10, variance: float = 0.9,
-                   population: int | None = None, score_sets: int = 1,
-                   restart_after: int | None = None, local_step: float | None = None,
-                   distinct: float | None = None, seed: object = 0) -> None:
+def check_optimize(task: str, budget: object, top: object = 10, variance: object = 0.9,
+                   population: object = None, score_sets: object = 1,
+                   restart_after: object = None, local_step: object = None,
+                   distinct: object = None, seed: object = 0, jobs: object = 0) -> None:
     """``robovae optimize``: a known task (:data:`robovae.design.score.TASKS`), ``budget`` and
-    ``top`` positive, ``variance`` in ``(0, 1]``, ``population`` (None: the ``cmaes``
-    default) at least 2 and at most :data:`MAX_POPULATION`, ``score_sets`` and
-    ``restart_after`` at least 1, ``local_step`` finite and ``> 0``, ``distinct`` finite and
-    ``>= 0`` (None: not given, the entry point's default), ``seed`` in ``[0, MAX_SEED]``."""
+    ``top`` positive integers, ``variance`` in ``(0, 1]``, ``population`` (None: the ``cmaes``
+    default) an integer from 2 to :data:`MAX_POPULATION`, ``score_sets`` and
+    ``restart_after`` integers of at least 1, ``local_step`` finite and ``> 0``, ``distinct``
+    finite and ``>= 0`` (None: not given, the entry point's default), ``seed`` in
+    ``[0, MAX_SEED]``, ``jobs`` an integer ``>= 0``."""
     from robovae.design.score import TASKS  # MuJoCo only
 
     if task not in TASKS:
         raise SettingsError(f"robovae: unknown task {task!r} (choose from {', '.join(TASKS)})")
-    if budget <= 0:
-        raise SettingsError(f"robovae: --budget must be > 0, got {budget}")
-    if top < 1:
-        raise SettingsError(f"robovae: --top must be >= 1, got {top}")
-    if not 0.0 < variance <= 1.0:
-        raise SettingsError(f"robovae: --variance must be in (0, 1], got {variance}")
-    if population is not None and population < 2:
-        raise SettingsError(f"robovae: --population must be >= 2, got {population}")
-    if population is not None and population > MAX_POPULATION:  # 10**8: a minute, nothing
-        raise SettingsError(f"robovae: --population must be at most {MAX_POPULATION:,} (CMA-ES's "
-                            f"own default is 4 + 3 ln k, 10 to 16 here), got {population}")
-    if score_sets < 1:
-        raise SettingsError(f"robovae: --score-sets must be >= 1, got {score_sets}")
-    if restart_after is not None and restart_after < 1:
-        raise SettingsError(f"robovae: --restart-after must be >= 1, got {restart_after}")
-    if local_step is not None and not (local_step > 0 and math.isfinite(local_step)):
-        raise SettingsError(f"robovae: --local-step must be > 0, got {local_step}")
-    if distinct is not None and not (distinct >= 0 and math.isfinite(distinct)):
-        raise SettingsError(f"robovae: --distinct must be >= 0, got {distinct}")
+    check_count("--budget", budget, 1)
+    check_count("--top", top, 1)
+    check_variance(variance)
+    if population is not None:
+        check_count("--population", population, 2)
+        if is_integer(population) and int(population) > MAX_POPULATION:  # 10**8: a minute
+            raise SettingsError(f"robovae: --population must be at most {MAX_POPULATION:,} "
+                                f"(CMA-ES's own default is 4 + 3 ln k, 10 to 16 here), got "
+                                f"{population}")
+    check_count("--score-sets", score_sets, 1)
+    if restart_after is not None:
+        check_count("--restart-after", restart_after, 1)
+    if local_step is not None and not number(0, low_open=True).test(local_step):
+        raise SettingsError(f"robovae: --local-step must be a finite number > 0, got "
+                            f"{local_step!r}")
+    if distinct is not None:
+        _finite("--distinct", distinct)
     check_seed(seed)
+    check_count("--jobs", jobs, 0)
+
+
+def check_variance(variance: object) -> None:
+    """The share of the prior's variance whose principal subspace is searched or varied in
+    (``--variance``): a number in ``(0, 1]``."""
+    if not number(0, 1, low_open=True).test(variance):
+        raise SettingsError(f"robovae: --variance must be a number in (0, 1], got {variance!r}")
 
 
 def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,

@@ -136,14 +136,15 @@ def tune_gaits(paths: Sequence[str | os.PathLike], refine: int = 496, seed: int 
 
     Raises:
         RobovaeError: one line, before any gait is tuned: ``refine`` below 16, ``starts`` or
-            ``hold`` below 1, ``noise`` negative, no robot, a missing or broken file, a robot
-            without actuators or with an actuated base (with ``step``: wheeled), two robots
-            with one destination, a destination holding another robot's gait (unless
+            ``hold`` below 1, ``jobs`` or ``noise`` negative, no robot, a missing or broken
+            file, a robot without actuators or with an actuated base (with ``step``: wheeled),
+            two robots with one destination, a destination holding another robot's gait (unless
             ``overwrite``), or a destination folder that cannot be written.
     """
     check_count("--refine", refine, 16)
     check_count("--starts", starts, 1)
     check_count("--hold", hold, 1)
+    check_count("--jobs", jobs, 0)
     check_seed(seed)
     if not 0 <= noise < math.inf:
         raise RobovaeError(f"robovae: --noise must be a finite number >= 0, not {noise!r}")

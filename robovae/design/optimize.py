@@ -404,12 +404,13 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         rather than step; else None) of ``top_robots``; plus ``out``, ``log``, ``plot``.
 
     Raises:
-        RobovaeError: unknown task, ``budget <= 0``, ``variance`` outside ``(0, 1]``,
-            ``population < 2``, ``score_sets < 1``, ``restart_after < 1``, ``local_step`` not
-            > 0, ``distinct`` < 0, bad checkpoint, ``out`` not usable.
+        RobovaeError: unknown task, ``budget`` or ``top`` not a positive integer,
+            ``variance`` outside ``(0, 1]``, ``population`` not an integer in [2, 10,000],
+            ``score_sets`` or ``restart_after`` not an integer >= 1, ``local_step`` not > 0,
+            ``distinct`` < 0, ``jobs`` negative, bad checkpoint, ``out`` not usable.
     """
     check_optimize(task, budget, top, variance, population, score_sets, restart_after,
-                   local_step, distinct, seed)
+                   local_step, distinct, seed, jobs)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")

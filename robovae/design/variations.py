@@ -135,11 +135,12 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     prior's principal subspace holding ``variance`` of its variance (module docstring).
 
     Raises:
-        RobovaeError: ``radius < 0``, ``n < 1`` or ``redraws < 0``, a bad checkpoint, or
+        RobovaeError: ``radius < 0``, ``n < 1``, ``redraws`` or ``jobs`` negative,
+            ``variance`` outside ``(0, 1]``, a bad checkpoint, or
             ``out`` holds robots of another run (unless ``overwrite``). RobotFileError:
             ``robot`` is not a robot.
     """
-    check_like(radius, n, redraws, seed)
+    check_like(radius, n, redraws, seed, variance, jobs)
     start = time.perf_counter()
     model = own_model(model)  # decoded in float64: never the caller's object
     encoded = encode_file(model, robot)  # refuses a bad file before anything is written

@@ -226,8 +226,9 @@ class WalkEnv(MujocoEnv):
         forward_reward_weight: weight of the heading-frame forward velocity (per m/s).
         healthy_reward: reward per healthy step.
         ctrl_cost_weight: weight of the mean squared normalised action.
-        min_height_ratio: healthy root height, as a fraction of its height in the initial pose.
-        max_tilt: healthy tilt of the root's up axis from vertical (degrees).
+        min_height_ratio: healthy root height, as a fraction of its height in the initial pose
+            (in ``[0, 1]``: above 1 the robot is unhealthy where it starts).
+        max_tilt: healthy tilt of the root's up axis from vertical (degrees, in ``(0, 180]``).
         terminate_when_unhealthy: end the episode at the first unhealthy step.
         reset_noise_scale: half-width of the uniform noise added to joint positions, and std of
             the normal noise of velocities, at reset (free-joint orientation left exact).
@@ -257,7 +258,8 @@ class WalkEnv(MujocoEnv):
             "WalkEnv", frame_skip=(frame_skip, integer(1)),
             forward_reward_weight=(forward_reward_weight, FINITE),
             healthy_reward=(healthy_reward, FINITE), ctrl_cost_weight=(ctrl_cost_weight, number(0)),
-            min_height_ratio=(min_height_ratio, number(0)), max_tilt=(max_tilt, number(0, 180)),
+            min_height_ratio=(min_height_ratio, number(0, 1)),
+            max_tilt=(max_tilt, number(0, 180, low_open=True)),
             reset_noise_scale=(reset_noise_scale, number(0)), width=(width, integer(1)),
             height=(height, integer(1)))
         self.robot_path = Path(robot).resolve()

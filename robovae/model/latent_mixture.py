@@ -25,7 +25,7 @@ import torch
 from torch import Tensor, nn
 from torch_geometric.data import Batch
 
-from robovae.settings import check_settings, integer
+from robovae.settings import check_settings, integer, number
 
 __all__ = ["LatentMixture", "fit_to_robots", "principal_basis"]
 
@@ -143,7 +143,13 @@ def principal_basis(cov: np.ndarray, variance: float) -> np.ndarray:
     (``cov = U diag(lambda) U^T``, ``lambda`` descending), scaled by their standard deviations,
     that hold the share ``variance`` of its trace (``sum_{i<=k} lambda_i >= variance ·
     tr cov``). ``z = m + B y`` maps the whitened coordinates ``y`` of the principal subspace
-    to latents: ``y ~ N(0, I_k)`` has the covariance of ``cov`` in that subspace."""
+    to latents: ``y ~ N(0, I_k)`` has the covariance of ``cov`` in that subspace.
+
+    Raises:
+        SettingsError: ``variance`` not a number in ``(0, 1]`` (0 kept one direction, 2 or NaN
+            all of them).
+    """
+    check_settings("principal_basis", variance=(variance, number(0, 1, low_open=True)))
     lam, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
     lam, vecs = np.clip(lam[::-1], 0.0, None), vecs[:, ::-1]
     share = np.cumsum(lam) / lam.sum()

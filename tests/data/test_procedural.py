@@ -378,6 +378,13 @@ def test_generator_settings_are_refused_in_one_line(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="write_procedural.seed must be an integer >= 0"):
         write_procedural(tmp_path / "w", 2, seed=-1)
     assert not (tmp_path / "w").exists()
+    # workers -5 and 2.5 ran in one process, jobs -1 too, until 2026-11-29
+    for workers in (-5, 0, 2.5):
+        with pytest.raises(ValueError, match="write_procedural.workers must be an integer >= 1"):
+            write_procedural(tmp_path / "w", 2, workers=workers)
+    assert not (tmp_path / "w").exists()
+    with pytest.raises(ValueError, match="procedural_graphs.jobs must be an integer >= 0"):
+        procedural_graphs(parse_procedural("n=2"), jobs=-1)
 
 
 def inertia_tensors(g, fs: str) -> torch.Tensor:

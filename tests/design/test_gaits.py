@@ -158,6 +158,9 @@ def test_bad_input_is_refused_in_one_line_before_anything_is_written(robots, tmp
     (tmp_path / "file").write_text("")
     with pytest.raises(RobovaeError, match="file: cannot write gaits there"):
         tune_gaits([q], out=tmp_path / "file")
+    with pytest.raises(RobovaeError, match="--jobs must be an integer of at least 0, not -1"):
+        tune_gaits([q], out=out, jobs=-1)  # ran in this process until 2026-11-29
+    assert not out.exists()
     assert main(["gait", q, "--out", str(tmp_path / "file" / "gaits"), "--jobs", "1"]) == 2
     assert "file/gaits: cannot write gaits there" in capsys.readouterr().err
     again = robots["quadruped"].parent / ".." / "quadruped" / "robot.xml"  # the same file

@@ -276,20 +276,39 @@ def test_a_worker_scores_candidates_without_torch(tmp_path):
     assert not any((tmp_path / k).exists() for k in "abc")  # scratch folders deleted
 
 
+@pytest.mark.parametrize("kw, message", [
+    ({"budget": float("nan")}, "--budget must be an integer"),  # NaN and 2.5 ran
+    ({"budget": 2.5}, "--budget must be an integer"),
+    ({"top": 0.5}, "--top must be an integer"), ({"score_sets": float("nan")}, "--score-sets"),
+    ({"population": 3.5}, "--population must be an integer"),
+    ({"restart_after": 0.5}, "--restart-after must be an integer"),
+    ({"jobs": -1}, "--jobs must be an integer of at least 0"),
+])
+def test_optimize_library_refuses_numbers_the_command_line_cannot_give(tmp_path, kw, message):
+    """A caller of :func:`optimize` (not argparse's integers) is refused before the checkpoint
+    is read or anything is written."""
+    with pytest.raises(RobovaeError, match=message):
+        optimize(tmp_path / "none.ckpt", "walk", **{"budget": 4, **kw}, out=tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
+W2 = ["--task", "walk", "--budget", "2"]
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--task", "fly", "--budget", "2"], "unknown task 'fly'"),
-    (["--task", "walk", "--budget", "0"], "--budget must be > 0"),
-    (["--task", "walk", "--budget", "-3"], "--budget must be > 0"),
-    (["--task", "walk", "--budget", "2", "--variance", "0"], "--variance must be in (0, 1]"),
-    (["--task", "walk", "--budget", "2", "--population", "1"], "--population must be >= 2"),
+    (["--task", "walk", "--budget", "0"], "--budget must be an integer of at least 1, not"),
+    (["--task", "walk", "--budget", "-3"], "--budget must be an integer of at least 1, not"),
+    ([*W2, "--variance", "0"], "--variance must be a number in (0, 1]"),
+    ([*W2, "--population", "1"], "--population must be an integer of at least 2"),
     # --population 100000000 ran minutes before anything was scored, until 2026-11-29
     (["--task", "walk", "--budget", "8", "--population", "100000000"],
      "--population must be at most 10,000"),
-    (["--task", "walk", "--budget", "2", "--score-sets", "0"], "--score-sets must be >= 1"),
-    (["--task", "walk", "--budget", "2", "--restart-after", "0"], "--restart-after must be >= 1"),
-    (["--task", "walk", "--budget", "2", "--local-step", "0"], "--local-step must be > 0"),
-    (["--task", "walk", "--budget", "2", "--local-step", "nan"], "--local-step must be > 0"),
-    (["--task", "walk", "--budget", "2", "--distinct", "-1"], "--distinct must be >= 0"),
+    ([*W2, "--score-sets", "0"], "--score-sets must be an integer of at least 1"),
+    ([*W2, "--restart-after", "0"], "--restart-after must be an integer of at least 1"),
+    ([*W2, "--local-step", "0"], "--local-step must be a finite number > 0"),
+    ([*W2, "--local-step", "nan"], "--local-step must be a finite number > 0"),
+    ([*W2, "--distinct", "-1"], "--distinct must be a finite number >= 0"),
 ])
 def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, message):
     _, _, ckpt = trained_nodes

@@ -249,3 +249,20 @@ def test_unfinished_variations_are_drawn_again(trained_nodes, files):
     assert torch.equal(z, variations.variation_latents(encoded, basis, 1.0, 0, [0, 1], draw=3))
     assert not torch.equal(z[0], variations.variation_latents(encoded, basis, 1.0, 0, [0])[0])
 
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"variance": 0.0}, r"--variance must be a number in \(0, 1\]"),
+    ({"variance": 2.0}, r"--variance must be a number in \(0, 1\]"),
+    ({"variance": float("nan")}, r"--variance must be a number in \(0, 1\]"),
+    ({"jobs": -3}, "--jobs must be an integer of at least 0"),  # ran in one process
+])
+def test_like_library_refuses_settings_out_of_range(files, tmp_path, kw, message):
+    """``generate_like(variance=0)`` varied one direction, 2 or NaN all of them, after the
+    output folder was claimed; refused first, before the checkpoint is read."""
+    from robovae.design.variations import generate_like
+    from robovae.errors import SettingsError
+
+    with pytest.raises(SettingsError, match=message):
+        generate_like(tmp_path / "none.ckpt", files[0], 0.5, 2, tmp_path / "o", **kw)
+    assert not (tmp_path / "o").exists()

@@ -167,7 +167,10 @@ def test_bad_robots_raise_one_line(tmp_path):
 
 @pytest.mark.parametrize("kw, match", [
     ({"frame_skip": 0}, r"WalkEnv\.frame_skip must be an integer >= 1, got 0"),
-    ({"max_tilt": 200.0}, r"max_tilt must be a number in \[0, 180\], got 200"),
+    ({"max_tilt": 200.0}, r"max_tilt must be a number in \(0, 180\], got 200"),
+    # accepted before 2026-11-29: unhealthy from the start, every episode one step long
+    ({"max_tilt": 0.0}, r"max_tilt must be a number in \(0, 180\], got 0"),
+    ({"min_height_ratio": 1.5}, r"min_height_ratio must be a number in \[0, 1\], got 1.5"),
     ({"reset_noise_scale": -0.1}, "reset_noise_scale must be a number >= 0"),
     ({"width": -5, "render_mode": "rgb_array"}, "width must be an integer >= 1, got -5"),
     # accepted before 2026-11-29: NaN rewards, a frame skip of 2.5 taken as 2

@@ -59,6 +59,16 @@ def test_moments_are_those_of_the_draws():
     assert cov[0, 2] > 0.5  # the components' means correlate the coordinates
 
 
+def test_principal_basis_refuses_a_variance_out_of_range():
+    """0 kept one direction, 2 and NaN every direction, without a word."""
+    from robovae.errors import SettingsError
+
+    assert principal_basis(np.diag([4.0, 1.0]), 0.8).shape == (2, 1)
+    for bad in (0.0, 2.0, float("nan"), -0.5):
+        with pytest.raises(SettingsError, match=r"principal_basis.variance must be a number in"):
+            principal_basis(np.diag([4.0, 1.0]), bad)
+
+
 def test_fewer_latents_than_components_is_refused():
     with pytest.raises(ValueError, match="at least 5 latents"):
         LatentMixture(2, 5).fit(torch.zeros(3, 2))

@@ -39,7 +39,7 @@ from robovae.data.workers import process_pool
 from robovae.errors import RobovaeError
 from robovae.files import atomic_write
 from robovae.options import option_int, source_options
-from robovae.settings import check_settings, integer
+from robovae.settings import FEATURE_SET, check_settings, integer
 
 if TYPE_CHECKING:
     from robovae.data.graph import RobotData
@@ -165,7 +165,13 @@ def _run(fn: Callable[..., list], jobs: list, args: tuple, workers: int, progres
 
 def procedural_graphs(source: ProceduralSource, feature_set: str = "paper34", jobs: int = 0,
                       progress: bool = False) -> list[RobotData]:
-    """The graphs of a procedural batch, built in ``jobs`` processes (0: all cores)."""
+    """The graphs of a procedural batch, built in ``jobs`` processes (0: all cores).
+
+    Raises:
+        SettingsError: ``jobs`` negative, an unknown ``feature_set``.
+    """
+    check_settings("procedural_graphs", jobs=(jobs, integer(0)),
+                   feature_set=(feature_set, FEATURE_SET))
     import torch
 
     from robovae.data.graph import RobotData
@@ -194,10 +200,12 @@ def write_procedural(out_dir: str | os.PathLike, n: int, seed: int = 0,
     ``workers``: processes (``None``: every CPU from 500 files to write, else in-process).
 
     Raises:
-        ValueError: an unknown class, ``n`` or ``seed`` not an integer ``>= 0``.
+        ValueError: an unknown class, ``n`` or ``seed`` not an integer ``>= 0``, ``workers``
+            (when given) not an integer ``>= 1``.
     """
     cfg = config or ProceduralConfig()
-    check_settings("write_procedural", n=(n, integer(0)), seed=(seed, integer(0)))
+    check_settings("write_procedural", n=(n, integer(0)), seed=(seed, integer(0)),
+                   workers=(workers, integer(1).or_none()))
     mix = check_classes(classes) if classes is not None else dict(cfg.mix)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -210,7 +218,7 @@ def write_procedural(out_dir: str | os.PathLike, n: int, seed: int = 0,
             todo.append((s, kind, str(path)))
     if workers is None:
         workers = (os.cpu_count() or 1) if len(todo) >= 500 else 1
-    _run(_write_batch, todo, (cfg,), max(1, workers), False, "files")
+    _run(_write_batch, todo, (cfg,), workers, False, "files")
     return paths
 
 
