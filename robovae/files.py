@@ -6,7 +6,8 @@ new one, never half of one. Robot files, scene files, procedural robots, reports
 optimisation logs are written with it; :func:`atomic_json` writes a JSON document so.
 :func:`robot_files` lists the robot files that commands given files and folders work on;
 :func:`writable` and :func:`writable_file` check, before a long run, that its files can be made
-where they go.
+where they go. :class:`FolderLock` keeps a second run from writing into a folder while a first
+one does (two terminals, two jobs of a cluster array given one ``--out``).
 """
 
 from __future__ import annotations
@@ -19,7 +20,13 @@ from pathlib import Path
 
 from robovae.errors import RobovaeError
 
-__all__ = ["atomic_json", "atomic_write", "robot_files", "writable", "writable_file"]
+try:  # POSIX advisory locks; elsewhere (Windows) folders are not guarded
+    import fcntl
+except ImportError:  # pragma: no cover - POSIX here
+    fcntl = None  # type: ignore[assignment]
+
+__all__ = ["LOCK", "FolderLock", "atomic_json", "atomic_write", "robot_files", "writable",
+           "writable_file"]
 
 _ATTEMPTS = 100  # temporary names tried before giving up
 
@@ -126,3 +133,71 @@ def writable_file(path: str | os.PathLike, what: str = "files") -> Path:
         raise RobovaeError(f"robovae: {path}: a folder, not a file name for the {what}")
     writable(path.parent, what, make=False)
     return path
+
+
+#: The lock file a run holds in its output folder while it writes there (removed at its end).
+LOCK = ".robovae.lock"
+
+
+class FolderLock:
+    """An exclusive lock on the output folder ``out`` for one run, held from :meth:`acquire`
+    (or ``with``) to :meth:`release`: a second run into the same folder is refused in one line
+    instead of writing every robot again beside the first (two manifests' worth of records) or
+    rewriting an optimisation log under it.
+
+    The lock is ``flock`` on ``out/.robovae.lock`` (the folder is made first, as by
+    :func:`writable`): the kernel drops it when its process ends, so a run killed outright leaves
+    no stale lock (only the file, which the next run takes over). The file holds the owner's
+    process id, for the message; it is removed on release, and a lock taken on a file that its
+    owner removed meanwhile is taken again on the new one. Not re-entrant: a process holds a
+    folder once. Without ``fcntl`` (Windows) the folder is not guarded.
+
+    Raises:
+        RobovaeError: (from :meth:`acquire`) another run holds the folder, or the folder
+            cannot be made or written to.
+    """
+
+    def __init__(self, out: str | os.PathLike, what: str = "files") -> None:
+        self.out, self.what = Path(out), what
+        self.path = self.out / LOCK
+        self._fd: int | None = None
+
+    def acquire(self) -> FolderLock:
+        """Take the lock (one try, no waiting); returns ``self``."""
+        writable(self.out, self.what)
+        if fcntl is None or self._fd is not None:
+            return self
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                owner = os.read(fd, 32).decode(errors="replace").strip()
+                os.close(fd)
+                raise RobovaeError(f"robovae: {self.out}: another run is writing there "
+                                   f"(process {owner or 'unknown'}, {LOCK}); wait for it to "
+                                   "end or use another output folder") from None
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
+                self._fd = fd
+                return self
+            os.close(fd)  # its owner removed it as we opened it: lock the file there now
+
+    def release(self) -> None:
+        """Remove the lock file and drop the lock (nothing when not held)."""
+        if self._fd is None:
+            return
+        self.path.unlink(missing_ok=True)
+        os.close(self._fd)
+        self._fd = None
+
+    def __enter__(self) -> FolderLock:
+        return self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()

@@ -77,3 +77,46 @@ def test_robot_files_from_files_and_folders(tmp_path):
         "loose/b.xml"]
     with pytest.raises(RobovaeError, match=r"nope: no such file or folder$"):
         robot_files([tmp_path / "nope"])
+
+
+def test_a_folder_lock_refuses_a_second_holder_and_is_gone_after(tmp_path):
+    """Two locks on one folder (two runs given one ``--out``): the second is refused in one line
+    naming the folder and the first's process; released, the lock file is removed and the
+    folder can be locked again."""
+    out = tmp_path / "runs" / "out"
+    with files.FolderLock(out, "robots") as lock:
+        assert out.is_dir() and lock.path.read_text().strip() == str(os.getpid())
+        with pytest.raises(RobovaeError) as e:
+            files.FolderLock(out).acquire()
+        message = str(e.value)
+        assert "\n" not in message and str(out) in message
+        assert f"another run is writing there (process {os.getpid()}" in message
+    assert not (out / files.LOCK).exists()
+    files.FolderLock(out).acquire().release()
+    (tmp_path / "file").write_text("keep")
+    with pytest.raises(RobovaeError, match="cannot write robots there"):
+        files.FolderLock(tmp_path / "file" / "out", "robots").acquire()
+    assert (tmp_path / "file").read_text() == "keep"
+
+
+def test_a_killed_holder_leaves_no_lock(tmp_path):
+    """A run killed outright leaves its lock file but not the lock (the kernel drops a dead
+    process's ``flock``): the next run takes the folder."""
+    import signal
+    import subprocess
+    import sys
+
+    code = ("import sys, time\nfrom robovae.files import FolderLock\n"
+            "FolderLock(sys.argv[1]).acquire()\nprint('held', flush=True)\ntime.sleep(60)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "held"
+        with pytest.raises(RobovaeError, match=f"process {proc.pid}"):
+            files.FolderLock(tmp_path).acquire()
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert (tmp_path / files.LOCK).exists()  # stale file, no lock
+    with files.FolderLock(tmp_path) as lock:
+        assert lock.path.read_text().strip() == str(os.getpid())

@@ -100,7 +100,7 @@ from robovae.design.results import (
 )
 from robovae.design.score import SCORE_VERSION
 from robovae.errors import RobovaeError
-from robovae.files import atomic_json, writable
+from robovae.files import FolderLock, atomic_json
 from robovae.generate.pipeline import model_fingerprint, worker_pool
 from robovae.generate.writer import WRITER as WRITTEN
 from robovae.model.checkpoint import own_model
@@ -407,7 +407,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         RobovaeError: unknown task, ``budget`` or ``top`` not a positive integer,
             ``variance`` outside ``(0, 1]``, ``population`` not an integer in [2, 10,000],
             ``score_sets`` or ``restart_after`` not an integer >= 1, ``local_step`` not > 0,
-            ``distinct`` < 0, ``jobs`` negative, bad checkpoint, ``out`` not usable.
+            ``distinct`` < 0, ``jobs`` negative, bad checkpoint, ``out`` not usable or being
+            written by another run (:class:`~robovae.files.FolderLock`).
     """
     check_optimize(task, budget, top, variance, population, score_sets, restart_after,
                    local_step, distinct, seed, jobs)
@@ -417,42 +418,43 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     model = own_model(ckpt)  # decoded in float64: never the caller's object
     run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
                score_sets, restart_after, local_step, distinct)
-    run.load()
-    writable(out, "the run's files")
-    from tqdm.auto import tqdm
+    # one run at a time: a second would rewrite log.json under this one and delete its .work
+    with FolderLock(out, "the run's files"):
+        run.load()
+        from tqdm.auto import tqdm
 
-    done = sum(min(len(v), budget) for v in run.log["evaluations"].values())
-    bar = tqdm(total=3 * budget, initial=done, desc=f"optimize {task}", unit="robot",
-               disable=not progress)
-    jobs = jobs or (os.cpu_count() or 1)
-    # started warm (their imports overlap the first decoding), and only with robots to score
-    busy = done < 3 * budget or heldout_todo(run)
-    pool = worker_pool(jobs, warm=True) if jobs > 1 and busy else None
-    try:  # on an error or Ctrl-C the pool cancels its queued robots (WorkerPool)
-        with pool if pool is not None else nullcontext():
-            while True:
-                k = run.round(pool)
-                if k == 0:
-                    break
-                bar.update(k)
+        done = sum(min(len(v), budget) for v in run.log["evaluations"].values())
+        bar = tqdm(total=3 * budget, initial=done, desc=f"optimize {task}", unit="robot",
+                   disable=not progress)
+        jobs = jobs or (os.cpu_count() or 1)
+        # started warm (their imports overlap the first decoding), and only with robots to score
+        busy = done < 3 * budget or heldout_todo(run)
+        pool = worker_pool(jobs, warm=True) if jobs > 1 and busy else None
+        try:  # on an error or Ctrl-C the pool cancels its queued robots (WorkerPool)
+            with pool if pool is not None else nullcontext():
+                while True:
+                    k = run.round(pool)
+                    if k == 0:
+                        break
+                    bar.update(k)
+                bar.close()
+                summary = write_best(run)
+                held = heldout(run, pool)
+        finally:
             bar.close()
-            summary = write_best(run)
-            held = heldout(run, pool)
-    finally:
-        bar.close()
-        shutil.rmtree(out / ".work", ignore_errors=True)
-    for m in METHODS:
-        summary[m]["heldout"] = held[m][0]["median"] if held[m] else None
-        # the robot that walks (stands, reaches) best on the held-out seeds may not be rank 0
-        pick = max(held[m], key=lambda h: (h["median"], -h["rank"]), default=None)
-        summary[m]["heldout_best"] = pick["median"] if pick else None
-        summary[m]["heldout_best_rank"] = pick["rank"] if pick else None
-        gait = (held[m][0].get("gait") or {}) if held[m] else {}  # walk: the best's gait
-        summary[m]["power_per_kg"] = gait["power"] / gait["mass"] \
-            if gait.get("power") is not None and gait.get("mass") else None
-        # walk, step: how many top robots have a motor on a hinge without limits (may roll)
-        wheels = [h["gait"].get("wheeled") for h in held[m] if "gait" in h]
-        summary[m]["top_wheeled"] = sum(w is True for w in wheels) if wheels else None
-        summary[m]["top_robots"] = len(held[m])
-    png = plot(run, out / "convergence.png")
-    return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(png)}
+            shutil.rmtree(out / ".work", ignore_errors=True)
+        for m in METHODS:
+            summary[m]["heldout"] = held[m][0]["median"] if held[m] else None
+            # the robot that walks (stands, reaches) best on the held-out seeds may not be rank 0
+            pick = max(held[m], key=lambda h: (h["median"], -h["rank"]), default=None)
+            summary[m]["heldout_best"] = pick["median"] if pick else None
+            summary[m]["heldout_best_rank"] = pick["rank"] if pick else None
+            gait = (held[m][0].get("gait") or {}) if held[m] else {}  # walk: the best's gait
+            summary[m]["power_per_kg"] = gait["power"] / gait["mass"] \
+                if gait.get("power") is not None and gait.get("mass") else None
+            # walk, step: how many top robots have a motor on a hinge without limits (may roll)
+            wheels = [h["gait"].get("wheeled") for h in held[m] if "gait" in h]
+            summary[m]["top_wheeled"] = sum(w is True for w in wheels) if wheels else None
+            summary[m]["top_robots"] = len(held[m])
+        png = plot(run, out / "convergence.png")
+        return {**summary, "out": str(out), "log": str(out / LOG), "plot": str(png)}

@@ -64,7 +64,7 @@ from torch_geometric.data import Batch
 
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.errors import RobovaeError
-from robovae.files import writable
+from robovae.files import FolderLock, writable
 from robovae.generate.pipeline import (
     MANIFEST,
     GenerationReport,
@@ -136,7 +136,8 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
 
     Raises:
         RobovaeError: ``radius < 0``, ``n < 1``, ``redraws`` or ``jobs`` negative,
-            ``variance`` outside ``(0, 1]``, a bad checkpoint, or
+            ``variance`` outside ``(0, 1]``, a bad checkpoint, another run writing into ``out``
+            (:class:`~robovae.files.FolderLock`), or
             ``out`` holds robots of another run (unless ``overwrite``). RobotFileError:
             ``robot`` is not a robot.
     """
@@ -146,24 +147,25 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     encoded = encode_file(model, robot)  # refuses a bad file before anything is written
     out = Path(out)
     digest = hashlib.sha256(Path(robot).read_bytes()).hexdigest()
-    claim(out, {"model": model_fingerprint(model), "like": digest, "radius": radius,
-                "radius_space": f"prior standard deviations, principal subspace {variance:g}",
-                "seed": seed, "redraws": redraws, "floating": floating, "writer": WRITER},
-          overwrite)
-    model = model.to(torch.float64)  # as robovae generate: a robot never depends on its batch
-    encoded = encoded._replace(mu=encoded.mu.double(), nodes=encoded.nodes.double())
-    basis = model.prior_directions(variance)[1]
-    todo = [i for i in range(n) if i not in read_manifest(out)]
-    jobs = jobs or (os.cpu_count() or 1)
-    with worker_pool(jobs, warm=True) if jobs > 1 and len(todo) >= 4 else nullcontext() as pool:
-        for k in range(0, len(todo), LIKE_BATCH):
-            _like_batch(model, todo[k:k + LIKE_BATCH], encoded, basis, robot, radius, out,
-                        seed, redraws, validate, jobs, scene, floating, pool)
-    reference = reconstruction_record(model, encoded, floating)
-    spread = prior_spread(model, variance)
-    return summarize(model, out, n, len(todo), validate, time.perf_counter() - start,
-                     extra=lambda records: {"like": like_metrics(records, reference, radius,
-                                                                 spread)})
+    with FolderLock(out, "robots"):  # as robovae generate: one run writes there at a time
+        claim(out, {"model": model_fingerprint(model), "like": digest, "radius": radius,
+                    "radius_space": f"prior standard deviations, principal subspace {variance:g}",
+                    "seed": seed, "redraws": redraws, "floating": floating, "writer": WRITER},
+              overwrite)
+        model = model.to(torch.float64)  # as robovae generate: a robot never depends on its batch
+        encoded = encoded._replace(mu=encoded.mu.double(), nodes=encoded.nodes.double())
+        basis = model.prior_directions(variance)[1]
+        todo = [i for i in range(n) if i not in read_manifest(out)]
+        jobs = jobs or (os.cpu_count() or 1)
+        with worker_pool(jobs, warm=True) if jobs > 1 and len(todo) >= 4 else nullcontext() as pool:
+            for k in range(0, len(todo), LIKE_BATCH):
+                _like_batch(model, todo[k:k + LIKE_BATCH], encoded, basis, robot, radius, out,
+                            seed, redraws, validate, jobs, scene, floating, pool)
+        reference = reconstruction_record(model, encoded, floating)
+        spread = prior_spread(model, variance)
+        return summarize(model, out, n, len(todo), validate, time.perf_counter() - start,
+                         extra=lambda records: {"like": like_metrics(records, reference, radius,
+                                                                     spread)})
 
 
 def prior_spread(model: RoboVAE, variance: float = LIKE_VARIANCE) -> float:

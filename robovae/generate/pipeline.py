@@ -43,7 +43,7 @@ from robovae.data.workers import WorkerPool, process_pool
 from robovae.errors import RobovaeError
 from robovae.evaluate.quality.report import summarize as quality_summary
 from robovae.evaluate.samples import robot_record, sample_metrics
-from robovae.files import atomic_json, writable
+from robovae.files import FolderLock, atomic_json, writable
 from robovae.generate.build import build_robot, warm_up
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.writer import WRITER
@@ -230,7 +230,8 @@ def generate(
 
     Raises:
         RobovaeError: ``n`` is not a positive integer, a temperature is negative, ``out``
-            cannot be written to, or it holds robots of another run.
+            cannot be written to, it holds robots of another run, or another run is writing
+            there (:class:`~robovae.files.FolderLock`).
 
     ``out`` is tied to the model and settings that started it (``run.json``): resuming with
     another checkpoint, seed, temperature or validation is refused unless ``overwrite``.
@@ -270,45 +271,46 @@ def generate(
            "prior": prior_name(model), "stance": stance, "writer": WRITER}
     if validate and controls != "zero":  # folders validated with zero controls resume
         run["validation"] = controls
-    claim(out, run, overwrite)
-    # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
-    # a robot must not depend on which robots it was decoded with (byte-identical files)
-    model = model.to(torch.float64)
-    done = read_manifest(out)
-    todo = [i for i in range(n) if i not in done]
-    from tqdm.auto import tqdm
+    with FolderLock(out, "robots"):  # a second run into out is refused while this one writes
+        claim(out, run, overwrite)
+        # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
+        # a robot must not depend on which robots it was decoded with (byte-identical files)
+        model = model.to(torch.float64)
+        done = read_manifest(out)
+        todo = [i for i in range(n) if i not in done]
+        from tqdm.auto import tqdm
 
-    bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
-               disable=not progress)
-    jobs = jobs or (os.cpu_count() or 1)
-    threads = torch.get_num_threads()
-    prepare = partial(prepare_records, seed=seed, temperature=temperature, validate=validate,
-                      scene=scene, floating=floating, mirror=mirror, quality=quality,
-                      controls=controls, stance=stance)
-    try:
-        if jobs > 1:
-            torch.set_num_threads(1)  # the workers have the other cores
-        # the workers start before the first batch is decoded (each imports the writer, MuJoCo
-        # and the measures meanwhile), after the refusals above and only with robots to make;
-        # an error or Ctrl-C cancels the robots queued for them (WorkerPool)
-        with open_manifest(out / MANIFEST) as manifest, \
-                (worker_pool(jobs, warm=True) if jobs > 1 and todo else nullcontext()) as pool:
-            queued = None  # the batch the workers are on: its records and their results
-            for chunk in _chunks(todo, batch_size):
-                z, graphs, draws = draw_robots(model, seed, chunk, temperature,
-                                               node_temperature, redraws)
-                records, items = prepare(model, chunk, z, graphs, out, draws=draws)
-                built = pool.map(build_robot, items, chunksize=4) if pool is not None \
-                    else [build_robot(item) for item in items]
-                if queued is not None:  # collected only once the next batch is queued
+        bar = tqdm(total=n, initial=n - len(todo), desc="robots", unit="robot",
+                   disable=not progress)
+        jobs = jobs or (os.cpu_count() or 1)
+        threads = torch.get_num_threads()
+        prepare = partial(prepare_records, seed=seed, temperature=temperature, validate=validate,
+                          scene=scene, floating=floating, mirror=mirror, quality=quality,
+                          controls=controls, stance=stance)
+        try:
+            if jobs > 1:
+                torch.set_num_threads(1)  # the workers have the other cores
+            # the workers start before the first batch is decoded (each imports the writer, MuJoCo
+            # and the measures meanwhile), after the refusals above and only with robots to make;
+            # an error or Ctrl-C cancels the robots queued for them (WorkerPool)
+            with open_manifest(out / MANIFEST) as manifest, \
+                    (worker_pool(jobs, warm=True) if jobs > 1 and todo else nullcontext()) as pool:
+                queued = None  # the batch the workers are on: its records and their results
+                for chunk in _chunks(todo, batch_size):
+                    z, graphs, draws = draw_robots(model, seed, chunk, temperature,
+                                                   node_temperature, redraws)
+                    records, items = prepare(model, chunk, z, graphs, out, draws=draws)
+                    built = pool.map(build_robot, items, chunksize=4) if pool is not None \
+                        else [build_robot(item) for item in items]
+                    if queued is not None:  # collected only once the next batch is queued
+                        _finish(manifest, *queued, bar)
+                    queued = records, built
+                if queued is not None:
                     _finish(manifest, *queued, bar)
-                queued = records, built
-            if queued is not None:
-                _finish(manifest, *queued, bar)
-    finally:
-        torch.set_num_threads(threads)
-    bar.close()
-    return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
+        finally:
+            torch.set_num_threads(threads)
+        bar.close()
+        return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 
 
 def _finish(manifest: TextIO, records: list[dict], built: Iterable[dict],

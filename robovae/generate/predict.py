@@ -29,6 +29,7 @@ from lightning.pytorch.callbacks import BasePredictionWriter
 from robovae.data.latents import LatentIndices  # noqa: F401  (re-exported)
 from robovae.data.workers import WorkerPool
 from robovae.errors import RobovaeError
+from robovae.files import FolderLock
 from robovae.generate.pipeline import (
     RUN,
     GenerationReport,
@@ -88,6 +89,7 @@ class RobotWriter(BasePredictionWriter):
         self.validate, self.scene, self.jobs = validate, scene, jobs
         self.report: GenerationReport | None = None
         self._pool: WorkerPool | None = None
+        self._lock = FolderLock(self.out)  # taken by rank 0 when the run claims the folder
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
         """Create the output folder and read the manifest of a run being resumed."""
@@ -117,15 +119,18 @@ class RobotWriter(BasePredictionWriter):
                "prior": prior_name(model), "stance": True, "writer": WRITER}
         refused = None
         if trainer.is_global_zero:
-            try:
+            try:  # held by rank 0 until the run ends (teardown): one run writes here at a time
+                self._lock = FolderLock(self.out, "robots").acquire()
                 claim(self.out, run)
             except RobovaeError as e:
-                refused = e
-        trainer.strategy.barrier()
+                refused = str(e)
+        refused = trainer.strategy.broadcast(refused, src=0)  # every rank stops together
+        if refused is not None:
+            raise RobovaeError(refused)
         path = self.out / RUN
         if not path.is_file() or read_run(path) != run:
-            raise refused or RobovaeError(f"robovae: {self.out}: holds robots of another run; "
-                                          "use another output_dir")
+            raise RobovaeError(f"robovae: {self.out}: holds robots of another run; use another "
+                               "output_dir")
         skip = sorted(read_manifest(self.out))
         trainer.strategy.barrier()
         return skip
@@ -157,12 +162,14 @@ class RobotWriter(BasePredictionWriter):
         if self._pool is not None:
             self._pool.terminate()
             self._pool = None
+        self._lock.release()
 
     def teardown(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
         """Close the validation worker pool (after finished batches nothing is queued)."""
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
+        self._lock.release()
 
     def on_predict_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
         """On rank 0, summarise the manifests of all ranks and print the sample report."""

@@ -318,6 +318,20 @@ def test_optimize_refuses_bad_input(trained_nodes, tmp_path, capsys, argv, messa
     assert message in err and err.count("\n") == 1 and not out.exists()
 
 
+def test_optimize_refuses_a_folder_another_run_is_writing(trained_nodes, tmp_path, capsys):
+    """A second run would rewrite log.json under the first and delete its scratch folder."""
+    from robovae.files import LOCK, FolderLock
+
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "o"
+    with FolderLock(out):
+        assert main(["optimize", "--ckpt", str(ckpt), "--task", "stand", "--budget", "2",
+                     "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "another run is writing there" in err and err.count("\n") == 1
+        assert sorted(p.name for p in out.iterdir()) == [LOCK]
+
+
 def test_optimize_refuses_an_out_inside_a_file(trained_nodes, tmp_path, capsys):
     _, _, ckpt = trained_nodes
     (tmp_path / "file").write_text("keep")

@@ -184,6 +184,24 @@ def test_cli_generate(trained, tmp_path, capsys):
     assert "3 robots" in out and "validity" in out
 
 
+def test_a_second_run_into_a_folder_being_written_is_refused(trained, tmp_path, capsys):
+    """Two ``robovae generate`` runs given one ``--out`` both made every robot and appended
+    every record twice (measured: 60 robots, 120 manifest lines, until 2026-11-29); the second
+    is now refused in one line while the first holds the folder, and writes nothing."""
+    from robovae.files import LOCK, FolderLock
+
+    _, _, ckpt = trained
+    out = tmp_path / "g"
+    with FolderLock(out, "robots"):  # the first run, still writing
+        assert main(["generate", "--ckpt", str(ckpt), "-n", "2", "--out", str(out),
+                     "--jobs", "1"]) == 2
+        err = capsys.readouterr().err
+        assert "another run is writing there" in err and err.count("\n") == 1
+        assert sorted(p.name for p in out.iterdir()) == [LOCK]
+    generate(ckpt, 2, out, validate=False, progress=False, jobs=1)  # once it has ended
+    assert not (out / LOCK).exists() and sorted(read_manifest(out)) == [0, 1]
+
+
 def test_cli_generate_bad_checkpoint_is_one_line(tmp_path, capsys):
     bad = tmp_path / "x.ckpt"
     bad.write_bytes(b"not a checkpoint")

@@ -178,4 +178,9 @@ def test_predict_resumes_a_killed_generation_and_refuses_another_run(trained, tm
         other.decoder.U_l.bias.add_(1.0)
     with pytest.raises(RobovaeError, match="model differ"):
         predict(other)
+    from robovae.files import LOCK, FolderLock
+
+    with FolderLock(out), pytest.raises(RobovaeError, match="another run is writing there"):
+        predict(model)  # a second run into the folder while a first writes there
     assert sorted(read_manifest(out)) == list(range(8))  # nothing touched
+    assert not (out / LOCK).exists()  # every run above released the folder
