@@ -103,12 +103,20 @@ def menagerie_file(name: str) -> Path:
     raise RobovaeError(f"robovae: menagerie:{name}: no robot file in {folder}")
 
 
+#: The kinds a source string names before its colon (module table).
+KINDS = ("zoo", "menagerie", "dir", "file", "synthetic", "procedural")
+
+
 def _split(src: str) -> tuple[str, str]:
     """A source string's kind and argument: ``procedural:n=10`` → ``("procedural", "n=10")``,
-    ``zoo`` → ``("zoo", "")``, a bare path → ``("", path)``."""
+    ``zoo`` → ``("zoo", "")``, a bare path → ``("", path)``; a path with a colon that names no
+    kind (``runs:v2/robots``, ``C:\\robots``) is a bare path when it exists (else the kind
+    before the colon is refused as unknown)."""
     if src == "zoo":
         return "zoo", ""
     kind, _, arg = src.partition(":") if ":" in src else ("", "", src)
+    if kind not in KINDS and Path(src).expanduser().exists():
+        return "", src
     return kind, arg
 
 

@@ -327,6 +327,23 @@ def test_cli_unknown_source_is_one_line(tmp_path, capsys):
     assert err.startswith("robovae: unknown source 'bogus:x'") and "\n" not in err
 
 
+def test_a_path_with_a_colon_is_a_path(tmp_path, capsys, monkeypatch):
+    """A folder named ``robots:v2`` (or ``C:\\robots``) was read as source kind ``robots``
+    and refused as unknown; an existing path whose colon names no kind is a path."""
+    folder = tmp_path / "robots:v2"
+    folder.mkdir()
+    from robovae.data.zoo import zoo_files
+
+    shutil.copy(dict(zoo_files()[0])["gym_ant"], folder / "ant.xml")
+    monkeypatch.chdir(tmp_path)
+    for source in ("robots:v2", str(folder), f"dir:{folder}"):
+        assert main(["data", "--root", str(tmp_path / f"cache{len(source)}"),
+                     "--source", source]) == 0, source
+        assert "1 robots" in capsys.readouterr().out
+    assert main(["data", "--root", str(tmp_path / "c"), "--source", "robots:v3"]) == 2
+    assert "unknown source 'robots:v3'" in capsys.readouterr().err  # a typo, no such path
+
+
 @pytest.mark.parametrize(("source", "message"), [
     # tracebacks before 2026-11-29 (int() of the text, the tree builder's checks)
     ("synthetic:n=abc", "synthetic source: n='abc' is not an integer"),
