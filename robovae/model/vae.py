@@ -197,12 +197,16 @@ class RoboVAE(PriorSampling, L.LightningModule):
     def on_load_checkpoint(self, checkpoint: dict) -> None:
         """Restore the training robots' records saved by :meth:`on_save_checkpoint` (or the
         plain list of an earlier version); a checkpoint from before the latent mixture loads
-        with the mixture unfitted."""
+        with the mixture unfitted; a checkpoint of another architecture is refused in one line
+        (:func:`~robovae.model.checkpoint.check_architecture`)."""
+        from robovae.model.checkpoint import check_architecture  # it imports this module
+
         self.training_robots = from_columns(checkpoint.get("robovae_training_robots"))
         state = checkpoint.get("state_dict", {})
         if self.latent_mixture is not None and "latent_mixture.fitted" not in state:
             state.update({f"latent_mixture.{k}": v
                           for k, v in self.latent_mixture.state_dict().items()})
+        check_architecture(checkpoint, self, self._trainer.ckpt_path if self._trainer else None)
 
     def normalized(self, batch: Batch) -> Batch:
         """A shallow copy of ``batch`` whose ``x`` is in model units, plus the batch's

@@ -315,3 +315,25 @@ def test_reconstruction_callback_refuses_settings_out_of_range():
         ReconstructionMetrics(every_n_epochs=0)
     with pytest.raises(SettingsError, match=r"ReconstructionMetrics\.max_per_robot"):
         ReconstructionMetrics(max_per_robot=-1)
+
+
+def test_a_checkpoint_of_another_model_is_one_line(trained, tmp_path, capsys):
+    """Loading a checkpoint into a model of other settings was torch's traceback listing every
+    mismatched tensor; now one line naming the file and the settings that differ."""
+    import re
+
+    _, dm, ckpt = trained
+    other = RoboVAE(hidden_dim=16, latent_dim=8, max_nodes=64)
+    with pytest.raises(RobovaeError, match=re.escape(
+            f"{ckpt}: a checkpoint of another model (hidden_dim 32 in the checkpoint, 16 here)")):
+        _trainer(tmp_path, 1).test(other, dm, ckpt_path=str(ckpt), verbose=False)
+    # the command line: LightningCLI takes the model's settings from the checkpoint, but the
+    # data's feature set (linked to the model's) comes from the config
+    argv = ["test", "--config", str(REPO / "configs" / "tiny.yaml"), "--ckpt_path", str(ckpt),
+            "--data.root", str(tmp_path / "cache"), "--data.feature_set", "kinematic",
+            "--trainer.default_root_dir", str(tmp_path), "--trainer.logger", "false"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"robovae: {ckpt}: a checkpoint of another model (feature_set 'paper34' "
+                       "in the checkpoint, 'kinematic' here); build the model with the settings "
+                       "it was trained with (its config, or robovae.model.checkpoint.load_model)")
