@@ -92,10 +92,10 @@ class RobotWriter(BasePredictionWriter):
         self._lock = FolderLock(self.out)  # taken by rank 0 when the run claims the folder
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
-        """Create the output folder and read the manifest of a run being resumed."""
+        """Ask for the robots already in the output folder when the predict set is built (rank 0
+        makes the folder then, when it claims it: a refused run leaves none)."""
         if stage != "predict":
             return
-        self.out.mkdir(parents=True, exist_ok=True)
         # Lightning sets Trainer.datamodule at run time without declaring it on the class
         dm = trainer.datamodule  # type: ignore[attr-defined]
         if dm is not None and hasattr(dm, "predict_skip"):
@@ -108,9 +108,17 @@ class RobotWriter(BasePredictionWriter):
 
         Rank 0 claims (``run.json``), then every rank checks ``run.json`` itself, so that all
         ranks stop together on a refusal; all ranks have read the manifests before any writes.
+
+        Raises:
+            RobovaeError: an untrained model (no checkpoint given), a folder of another run,
+                or one another run is writing.
         """
         hp = trainer.datamodule.hparams  # type: ignore[attr-defined]  # as in setup
         model = _robovae(pl_module)
+        if not bool(model.normalizer.fitted):  # no checkpoint: random weights, no feature units
+            raise RobovaeError("robovae: the model to sample from is untrained (its feature "
+                               "normaliser was never fitted): give --ckpt_path, the checkpoint "
+                               "of a trained model")
         run = {"model": model_fingerprint(_Float32Weights(model)),
                "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
                "feature_set": model.feature_set.name, "floating": True, "mirror": True,

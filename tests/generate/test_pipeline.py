@@ -26,6 +26,7 @@ from robovae.generate.pipeline import (
 from robovae.generate.predict import RobotWriter
 from robovae.generate.validate import REASONS
 from robovae.generate.writer import WRITER
+from robovae.model.vae import RoboVAE
 
 
 def _files(out: Path) -> dict[str, bytes]:
@@ -174,6 +175,19 @@ def test_predict_writer_matches_generate(trained, tmp_path):
     # resume: nothing left to do
     trainer.predict(model, dm, return_predictions=False)
     assert len(dm.predict_set) == 0 and writer.report.total == 5
+
+
+def test_predict_refuses_an_untrained_model(tmp_path):
+    """``robovae predict`` without ``--ckpt_path`` sampled a model of random weights and no
+    fitted normaliser: 3 "robots", all degenerate, exit 0 (until 2026-11-29). Refused, and no
+    output folder is left."""
+    dm = RobotDataModule(["zoo"], root=str(tmp_path / "cache"), predict_samples=3)
+    writer = RobotWriter(str(tmp_path / "pred"), validate=False)
+    trainer = L.Trainer(accelerator="cpu", devices=1, logger=False, callbacks=[writer],
+                        enable_progress_bar=False, enable_model_summary=False)
+    with pytest.raises(RobovaeError, match="the model to sample from is untrained"):
+        trainer.predict(RoboVAE(hidden_dim=16, latent_dim=8), dm, return_predictions=False)
+    assert not (tmp_path / "pred").exists()
 
 
 def test_cli_generate(trained, tmp_path, capsys):
