@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -150,7 +151,8 @@ class FolderLock:
     no stale lock (only the file, which the next run takes over). The file holds the owner's
     process id, for the message; it is removed on release, and a lock taken on a file that its
     owner removed meanwhile is taken again on the new one. Not re-entrant: a process holds a
-    folder once. Without ``fcntl`` (Windows) the folder is not guarded.
+    folder once. Without ``fcntl`` (Windows) the folder is not guarded, nor (with a warning) on
+    a file system that has no locks.
 
     Raises:
         RobovaeError: (from :meth:`acquire`) another run holds the folder, or the folder
@@ -177,6 +179,13 @@ class FolderLock:
                 raise RobovaeError(f"robovae: {self.out}: another run is writing there "
                                    f"(process {owner or 'unknown'}, {LOCK}); wait for it to "
                                    "end or use another output folder") from None
+            except OSError as e:  # a file system without locks (some network mounts)
+                os.close(fd)
+                self.path.unlink(missing_ok=True)
+                warnings.warn(f"robovae: {self.out}: no file locks on this file system "
+                              f"({e.strerror or type(e).__name__}): a second run into the "
+                              "folder is not refused", stacklevel=2)
+                return self
             try:
                 same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
             except FileNotFoundError:

@@ -120,3 +120,16 @@ def test_a_killed_holder_leaves_no_lock(tmp_path):
     assert (tmp_path / files.LOCK).exists()  # stale file, no lock
     with files.FolderLock(tmp_path) as lock:
         assert lock.path.read_text().strip() == str(os.getpid())
+
+
+def test_a_file_system_without_locks_runs_unguarded_with_a_warning(tmp_path, monkeypatch):
+    """Some network mounts refuse ``flock`` (ENOLCK): the run goes on, said once, unguarded."""
+    import errno
+
+    def no_locks(fd, op):
+        raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+
+    monkeypatch.setattr(files.fcntl, "flock", no_locks)
+    with pytest.warns(UserWarning, match="no file locks on this file system"), \
+            files.FolderLock(tmp_path / "o") as lock:
+        assert (tmp_path / "o").is_dir() and not lock.path.exists()
