@@ -92,7 +92,8 @@ def precision_recall(reference: np.ndarray, samples: np.ndarray, k: int = 3
     (module docstring); NaN for an empty set.
 
     Raises:
-        ValueError: the two sets have different widths. SettingsError: ``k`` below 1.
+        ValueError: the two sets have different widths.
+        SettingsError: ``k`` below 1.
     """
     check_settings("precision_recall", k=(k, integer(1)))
     reference, samples = np.atleast_2d(reference), np.atleast_2d(samples)
