@@ -113,38 +113,6 @@ def check_current_model(ckpt: dict, path: str | Path | None = None) -> None:
                            "current configs, e.g. `robovae fit --config configs/default.yaml`")
 
 
-#: The settings that shape a model's weights: a checkpoint loads only into a model built with
-#: its values of these.
-ARCHITECTURE = ("feature_set", "hidden_dim", "latent_dim", "tree_latent_dim", "node_latent_dim",
-                "feature_layers", "prior_components")
-
-
-def check_architecture(ckpt: dict, model: torch.nn.Module, path: str | os.PathLike | None = None
-                       ) -> None:
-    """Refuse to load ``ckpt`` into ``model`` when their weights differ in name or shape (a
-    checkpoint given with another config's model settings: ``robovae fit --config
-    configs/tiny.yaml --ckpt_path <default model>`` was a traceback listing every mismatched
-    tensor).
-
-    Raises:
-        RobovaeError: one line naming the checkpoint and the :data:`ARCHITECTURE` settings
-            whose values differ (or how many weights do, when none of those).
-    """
-    state, own = ckpt.get("state_dict") or {}, model.state_dict()
-    differ = sorted(k for k in state.keys() | own.keys() if k not in state or k not in own
-                    or tuple(state[k].shape) != tuple(own[k].shape))
-    if not state or not differ:
-        return
-    theirs, ours = ckpt.get("hyper_parameters") or {}, getattr(model, "hparams", {})
-    what = ", ".join(f"{k} {theirs.get(k)!r} in the checkpoint, {ours.get(k)!r} here"
-                     for k in ARCHITECTURE if theirs.get(k) != ours.get(k))
-    where = f" {path}:" if path is not None else ""
-    raise RobovaeError(f"robovae:{where} a checkpoint of another model "
-                       f"({what or f'{len(differ)} weights of other names or shapes'}); build "
-                       "the model with the settings it was trained with (its config, or "
-                       "robovae.model.checkpoint.load_model)")
-
-
 def load_model(path: str | os.PathLike[str], map_location: str | torch.device = "cpu"
                ) -> RoboVAE:
     """A :class:`RoboVAE` in eval mode from a Lightning checkpoint (``weights_only`` loading),

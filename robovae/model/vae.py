@@ -37,6 +37,7 @@ from robovae.data.features import get_feature_set
 from robovae.data.graph import RobotData, tree_data
 from robovae.data.normalizer import Normalizer
 from robovae.errors import RobovaeError
+from robovae.model.architecture import check_architecture
 from robovae.model.decoder import TreeDecoder
 from robovae.model.encoder import TreeEncoder, reparametrize
 from robovae.model.latent_mixture import LatentMixture, fit_to_robots
@@ -198,9 +199,7 @@ class RoboVAE(PriorSampling, L.LightningModule):
         """Restore the training robots' records saved by :meth:`on_save_checkpoint` (or the
         plain list of an earlier version); a checkpoint from before the latent mixture loads
         with the mixture unfitted; a checkpoint of another architecture is refused in one line
-        (:func:`~robovae.model.checkpoint.check_architecture`)."""
-        from robovae.model.checkpoint import check_architecture  # it imports this module
-
+        (:func:`~robovae.model.architecture.check_architecture`)."""
         self.training_robots = from_columns(checkpoint.get("robovae_training_robots"))
         state = checkpoint.get("state_dict", {})
         if self.latent_mixture is not None and "latent_mixture.fitted" not in state:
