@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
 import warnings
 from collections.abc import Sequence
@@ -150,22 +151,24 @@ class FolderLock:
     :func:`writable`): the kernel drops it when its process ends, so a run killed outright leaves
     no stale lock (only the file, which the next run takes over). The file holds the owner's
     process id, for the message; it is removed on release, and a lock taken on a file that its
-    owner removed meanwhile is taken again on the new one. Not re-entrant: a process holds a
-    folder once. Without ``fcntl`` (Windows) the folder is not guarded, nor (with a warning) on
-    a file system that has no locks.
+    owner removed meanwhile is taken again on the new one. With ``wait`` a second holder waits
+    for the first instead of being refused (a shared cache built once). Not re-entrant: a
+    process holds a folder once. Without ``fcntl`` (Windows) the folder is not guarded, nor
+    (with a warning) on a file system that has no locks.
 
     Raises:
-        RobovaeError: (from :meth:`acquire`) another run holds the folder, or the folder
-            cannot be made or written to.
+        RobovaeError: (from :meth:`acquire`) another run holds the folder (without ``wait``),
+            or the folder cannot be made or written to.
     """
 
-    def __init__(self, out: str | os.PathLike, what: str = "files") -> None:
-        self.out, self.what = Path(out), what
+    def __init__(self, out: str | os.PathLike, what: str = "files", wait: bool = False) -> None:
+        self.out, self.what, self.wait = Path(out), what, wait
         self.path = self.out / LOCK
         self._fd: int | None = None
 
     def acquire(self) -> FolderLock:
-        """Take the lock (one try, no waiting); returns ``self``."""
+        """Take the lock; returns ``self``. Held by another process: refused, or with ``wait``
+        waited for (said once on stderr)."""
         writable(self.out, self.what)
         if fcntl is None or self._fd is not None:
             return self
@@ -174,11 +177,15 @@ class FolderLock:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                owner = os.read(fd, 32).decode(errors="replace").strip()
-                os.close(fd)
-                raise RobovaeError(f"robovae: {self.out}: another run is writing there "
-                                   f"(process {owner or 'unknown'}, {LOCK}); wait for it to "
-                                   "end or use another output folder") from None
+                owner = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+                if not self.wait:
+                    os.close(fd)
+                    raise RobovaeError(f"robovae: {self.out}: another run is writing there "
+                                       f"(process {owner}, {LOCK}); wait for it to end or use "
+                                       "another output folder") from None
+                print(f"robovae: {self.out}: waiting for process {owner}, which is writing "
+                      f"{self.what} there", file=sys.stderr, flush=True)
+                fcntl.flock(fd, fcntl.LOCK_EX)
             except OSError as e:  # a file system without locks (some network mounts)
                 os.close(fd)
                 self.path.unlink(missing_ok=True)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import torch
 from torch_geometric.data import Data, InMemoryDataset
+from torch_geometric.data.dataset import files_exist
 
 import robovae
 from robovae.data.features import GEOM, JOINT, LINK, get_feature_set
@@ -28,7 +29,7 @@ from robovae.data.procedural.batch import procedural_graphs
 from robovae.data.sources import resolve_sources, source_list
 from robovae.data.workers import process_pool
 from robovae.errors import RobotFileError, RobovaeError
-from robovae.files import writable
+from robovae.files import FolderLock, writable
 from robovae.settings import check_settings, integer
 
 log = logging.getLogger("robovae")
@@ -167,6 +168,17 @@ class RobotDataset(InMemoryDataset):
     @property
     def processed_file_names(self) -> list[str]:
         return [f"robots_{self._key}.pt", f"robots_{self._key}.json"]
+
+    def _process(self) -> None:
+        """PyG's build step, once across processes: a process that finds another building a
+        cache in this root waits for it (:class:`~robovae.files.FolderLock` with ``wait``),
+        then reads the cache that one made (PyG looks again) instead of building it a second
+        time beside it (parallel training runs given one ``root``). A cache that exists is read
+        without the lock (it may be read-only)."""
+        if not self.force_reload and files_exist(self.processed_paths):
+            return super()._process()
+        with FolderLock(self.processed_dir, "the dataset cache", wait=True):
+            return super()._process()
 
     def download(self) -> None:  # sources are resolved in __init__
         """Nothing to download: sources are local files, packages or generators."""

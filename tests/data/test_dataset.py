@@ -141,6 +141,40 @@ def test_one_source_string_is_one_source_and_jobs_are_checked(tmp_path):
     assert not (tmp_path / "b").exists()
 
 
+def test_parallel_runs_on_one_root_build_the_cache_once(tmp_path):
+    """Processes asking for one uncached dataset (training runs of an experiment sharing
+    ``data_cache``): one builds it, the others wait for it and read its cache, instead of each
+    building it (the CPU and the memory many times over) and replacing each other's file. Here
+    both wait on a lock this test holds, then one builds."""
+    import subprocess
+    import sys
+
+    from robovae.files import LOCK, FolderLock
+
+    code = ("import sys\nimport robovae.data.dataset as d\n"
+            "build = d.RobotDataset.process\n"
+            "def counted(self):\n    print('BUILT', flush=True)\n    build(self)\n"
+            "d.RobotDataset.process = counted\n"
+            "ds = d.RobotDataset(sys.argv[1], ['procedural:n=300,seed=5'], progress=False,"
+            " jobs=1)\nprint('ROBOTS', len(ds), flush=True)\n")
+    processed = tmp_path / "cache" / "processed"
+    with FolderLock(processed):
+        runs = [subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "cache")],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                for _ in range(2)]
+        for r in runs:  # each says it waits (its stderr's other lines: warnings, if any)
+            assert r.stderr is not None
+            while "waiting for process" not in (line := r.stderr.readline()):
+                assert line, "the process ended without waiting"
+            assert f"waiting for process {os.getpid()}, which is writing the dataset cache" \
+                in line
+    outs = [r.communicate(timeout=600) for r in runs]
+    assert [r.returncode for r in runs] == [0, 0], outs
+    assert sum(o.count("BUILT") for o, _ in outs) == 1, outs
+    assert all("ROBOTS 300" in o for o, _ in outs)
+    assert not (processed / LOCK).exists()
+
+
 def test_datamodule_split_by_name_fits_normalizer_on_train(cache_root, menagerie_dir):
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root),
                          train_names=["go1", "a1"], test_names=["go2"], batch_size=2)
