@@ -185,7 +185,11 @@ class FolderLock:
                                        "another output folder") from None
                 print(f"robovae: {self.out}: waiting for process {owner}, which is writing "
                       f"{self.what} there", file=sys.stderr, flush=True)
-                fcntl.flock(fd, fcntl.LOCK_EX)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX)
+                except BaseException:  # Ctrl-C while waiting: the file is not left open
+                    os.close(fd)
+                    raise
             except OSError as e:  # a file system without locks (some network mounts)
                 os.close(fd)
                 self.path.unlink(missing_ok=True)
