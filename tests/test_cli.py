@@ -77,6 +77,17 @@ def test_usage_errors_are_one_line(argv, expect, tmp_path, capsys) -> None:
     assert err.rstrip().endswith("--help lists the options)")
 
 
+@pytest.mark.parametrize("flag", ["--config", "-c", "--config="])
+def test_a_config_that_is_not_text_is_one_line(flag, tmp_path, capsys) -> None:
+    """A binary file given as a config was a UnicodeDecodeError traceback (exit 1)."""
+    config = tmp_path / "bin.yaml"
+    config.write_bytes(b"model:\xc6\x00\xff")
+    argv = ["fit", f"--config={config}"] if flag.endswith("=") else ["fit", flag, str(config)]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (f"robovae fit ({config}): not a YAML config (not UTF-8 "
+                                       "text, byte 6)\n")
+
+
 @pytest.mark.parametrize("option", [["--first", "0"], ["--columns", "0"], ["--columns", "-1"]])
 def test_render_counts_must_be_positive(option, tmp_path, capsys) -> None:
     hopper = dict(zoo_files()[0])["gym_hopper"]

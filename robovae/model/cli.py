@@ -92,6 +92,15 @@ def run_lightning_cli(argv: Sequence[str] | None = None) -> RoboVAECLI:
     if argv is not None:  # given on purpose (main([...]) in a notebook or a test), whatever
         # the host program's own sys.argv holds
         warnings.filterwarnings("ignore", "LightningCLI's args parameter is intended.*")
+    args = list(sys.argv[1:] if argv is None else argv)
+    for config in _configs(args):  # jsonargparse's reader raises UnicodeDecodeError
+        try:
+            Path(config).read_text(encoding="utf-8")
+        except UnicodeDecodeError as e:
+            raise RobovaeError(f"robovae {args[0] if args else 'COMMAND'} ({config}): not a "
+                               f"YAML config (not UTF-8 text, byte {e.start})") from None
+        except OSError:  # missing or unreadable: jsonargparse says so in one line
+            pass
     try:
         return _cli(argv)
     except pickle.UnpicklingError as e:  # a checkpoint Lightning found itself (``last``)
@@ -101,11 +110,16 @@ def run_lightning_cli(argv: Sequence[str] | None = None) -> RoboVAECLI:
             from None
 
 
+def _configs(argv: list[str]) -> list[str]:
+    """The config files named on a command line (``--config F``, ``-c F``, ``--config=F``)."""
+    return ([b for a, b in zip(argv, argv[1:]) if a in ("-c", "--config")]
+            + [a.split("=", 1)[1] for a in argv if a.startswith("--config=")])
+
+
 def _parse_error(argv: list[str], e: ArgumentError) -> str:
     """One line for a parse error: the sub-command, its config files, the message."""
     sub = argv[0] if argv else "COMMAND"
-    configs = [b for a, b in zip(argv, argv[1:]) if a in ("-c", "--config")]
-    configs += [a.split("=", 1)[1] for a in argv if a.startswith("--config=")]
+    configs = _configs(argv)
     where = f" ({', '.join(configs)})" if configs else ""
     return (f"robovae {sub}{where}: {' '.join(str(e).split())} (robovae {sub} --help lists the "
             "options)")
