@@ -24,13 +24,16 @@ import warnings
 from argparse import ArgumentError
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
+import lightning as L
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import ArgsType, LightningArgumentParser, LightningCLI
 
 from robovae.data.datamodule import RobotDataModule
 from robovae.errors import RobovaeError
 from robovae.evaluate.callbacks import ReconstructionMetrics
+from robovae.files import FolderLock
 from robovae.model.checkpoint import check_current_model, read_checkpoint, refusal
 from robovae.model.vae import RoboVAE
 
@@ -38,8 +41,49 @@ from robovae.model.vae import RoboVAE
 _CKPT_KEYWORDS = ("last", "best", "hpc", "registry")
 
 
+class CheckpointLock(L.Callback):
+    """Hold the checkpoint folder of a ``fit`` run (:class:`~robovae.files.FolderLock`, rank 0,
+    from ``on_fit_start`` to the end of the run): a second ``robovae fit`` writing the same
+    folder — the same config started twice, or another config's run given the same
+    ``checkpoint.dirpath`` — is refused in one line, on every rank, before it trains. Until
+    2026-11-29 both trained and overwrote each other's ``last.ckpt`` and deleted each other's
+    epoch checkpoints. ``validate``/``test``/``predict`` only read checkpoints: not held."""
+
+    def __init__(self) -> None:
+        self._lock: FolderLock | None = None
+
+    def on_fit_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
+        """Take the folder on rank 0; every rank raises the refusal together."""
+        refused = None
+        ckpt = trainer.checkpoint_callback  # typed as the base Checkpoint: ours has a dirpath
+        folder = ckpt.dirpath if isinstance(ckpt, ModelCheckpoint) else None
+        if trainer.is_global_zero and folder is not None:
+            try:
+                self._lock = FolderLock(folder, "checkpoints").acquire()
+            except RobovaeError as e:
+                refused = str(e)
+        refused = trainer.strategy.broadcast(refused, src=0)
+        if refused is not None:
+            raise RobovaeError(refused)
+
+    def _release(self) -> None:
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
+
+    def teardown(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
+        """Release the folder at the end of the run."""
+        self._release()
+
+    def on_exception(self, trainer: L.Trainer, pl_module: L.LightningModule,
+                     exception: BaseException) -> None:
+        """Release the folder when the run fails or is interrupted."""
+        self._release()
+
+
 class RoboVAECLI(LightningCLI):
-    """LightningCLI with robovae's linked arguments and always-on callbacks."""
+    """LightningCLI with robovae's linked arguments and always-on callbacks (the checkpoint,
+    the RA/FRE metrics, :class:`CheckpointLock`)."""
 
     def add_arguments_to_parser(self, parser: LightningArgumentParser) -> None:
         """Link ``data.feature_set`` to the model and add the ``checkpoint`` and ``metrics``
@@ -60,6 +104,13 @@ class RoboVAECLI(LightningCLI):
         if ckpt and not (str(ckpt) in _CKPT_KEYWORDS or str(ckpt).startswith("registry:")
                          or "://" in str(ckpt)):
             check_current_model(read_checkpoint(Path(ckpt)), ckpt)  # one-line RobovaeErrors
+
+    def instantiate_trainer(self, **kwargs: Any) -> L.Trainer:
+        """The trainer, with :class:`CheckpointLock` among its callbacks."""
+        trainer = super().instantiate_trainer(**kwargs)
+        # Trainer.callbacks is set by Lightning's callback connector, undeclared on the class
+        trainer.callbacks.append(CheckpointLock())  # type: ignore[attr-defined]
+        return trainer
 
     def _weights_only(self) -> None:
         """``before_fit/validate/test/predict``: load checkpoints weights-only unless asked."""

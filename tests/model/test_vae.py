@@ -337,3 +337,24 @@ def test_a_checkpoint_of_another_model_is_one_line(trained, tmp_path, capsys):
     assert err[-1] == (f"robovae: {ckpt}: a checkpoint of another model (feature_set 'paper34' "
                        "in the checkpoint, 'kinematic' here); build the model with the settings "
                        "it was trained with (its config, or robovae.model.checkpoint.load_model)")
+
+
+def test_a_second_fit_into_a_checkpoint_folder_in_use_is_refused(tmp_path, capsys, monkeypatch):
+    """Two ``robovae fit`` runs writing one checkpoint folder overwrote each other's
+    ``last.ckpt`` and deleted each other's epoch checkpoints (measured: two ``tiny.yaml`` runs
+    of other learning rates, both exit 0, one ``last.ckpt`` left, until 2026-11-29); the
+    second is refused before it trains while the first holds the folder, and a run holds it
+    only while it runs."""
+    from robovae.files import LOCK, FolderLock
+
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "runs" / "tiny" / "checkpoints"
+    argv = ["fit", "--config", str(REPO / "configs" / "tiny.yaml"),
+            f"--data.root={tmp_path / 'cache'}", "--trainer.max_epochs=1"]
+    with FolderLock(folder):  # the first run, still training
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert err.startswith(f"robovae: {folder}: another run is writing there")
+        assert sorted(p.name for p in folder.iterdir()) == [LOCK]
+    assert main(argv) == 0  # once the first has ended
+    assert (folder / "last.ckpt").is_file() and not (folder / LOCK).exists()
