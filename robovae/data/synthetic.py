@@ -130,7 +130,11 @@ def random_tree(
     if name is None:
         name = ("random_tree" if isinstance(generator, torch.Generator)
                 else f"random_tree_{generator}")
-    g = _as_generator(generator)
+    return _draw_tree(num_nodes, dim, _as_generator(generator), name)
+
+
+def _draw_tree(num_nodes: int, dim: int, g: torch.Generator, name: str) -> RobotData:
+    """:func:`random_tree` once its arguments are checked (the loops below check them once)."""
     seq = torch.randint(0, num_nodes, (max(num_nodes - 2, 0),), generator=g).tolist()
     x = torch.rand(num_nodes, dim, generator=g)
     parent = prufer_to_parent(seq, num_nodes)
@@ -154,8 +158,7 @@ def random_trees(
                    num_nodes=(num_nodes, integer(1)), dim=(dim, integer(1)))
     check_seed(seed, "random_trees seed")
     g = _as_generator(seed)
-    return [random_tree(num_nodes, dim, g, name=f"random_tree_{seed}_{i}")
-            for i in range(num_graphs)]
+    return [_draw_tree(num_nodes, dim, g, f"random_tree_{seed}_{i}") for i in range(num_graphs)]
 
 
 def _parent_of(tree: RobotData | Tensor | Sequence[int]) -> list[int]:
@@ -258,7 +261,7 @@ def unseen_random_tree(
                            "is in training: none is unseen")
     g = _as_generator(seed)
     for k in range(max_tries):
-        tree = random_tree(num_nodes, dim, g, name=f"random_tree_unseen_{seed}_{k}")
+        tree = _draw_tree(num_nodes, dim, g, f"random_tree_unseen_{seed}_{k}")
         if canonical_form(tree) not in seen:
             return tree
     raise RuntimeError(f"no tree of {num_nodes} nodes unseen in training after {max_tries} draws")
