@@ -16,7 +16,6 @@ The data sources' options (``synthetic:n=20,…``, ``procedural:n=1000,…``) ar
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -172,7 +171,7 @@ def check_analyze(max_samples: int | None = None, entropy_seconds: float = 3.0,
         check_count(f"--{name}", k, 0)
     if max_samples is not None:
         check_count("--max-samples", max_samples, 1)
-    if not 0 < entropy_seconds < math.inf:
+    if not number(0, low_open=True).test(entropy_seconds):
         raise SettingsError(f"robovae: --entropy-seconds must be a positive number, not "
                             f"{entropy_seconds!r}")
     check_count("--gait-rollouts", gait_rollouts, 1)
