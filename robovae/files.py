@@ -152,7 +152,10 @@ class FolderLock:
     no stale lock (only the file, which the next run takes over). The file holds the owner's
     process id, for the message; it is removed on release, and a lock taken on a file that its
     owner removed meanwhile is taken again on the new one. With ``wait`` a second holder waits
-    for the first instead of being refused (a shared cache built once). Not re-entrant: a
+    for the first instead of being refused (a shared cache built once). With ``beside`` the
+    lock file is ``.<name>.robovae.lock`` next to ``out`` and ``out`` is not made: for an
+    output built elsewhere and renamed into place whole, which must stay empty or absent until
+    then (``robovae interpolate``). Not re-entrant: a
     process holds a folder once. Without ``fcntl`` (Windows) the folder is not guarded, nor
     (with a warning) on a file system that has no locks.
 
@@ -161,15 +164,16 @@ class FolderLock:
             or the folder cannot be made or written to.
     """
 
-    def __init__(self, out: str | os.PathLike, what: str = "files", wait: bool = False) -> None:
-        self.out, self.what, self.wait = Path(out), what, wait
-        self.path = self.out / LOCK
+    def __init__(self, out: str | os.PathLike, what: str = "files", wait: bool = False,
+                 beside: bool = False) -> None:
+        self.out, self.what, self.wait, self.beside = Path(out), what, wait, beside
+        self.path = self.out.parent / f".{self.out.name}{LOCK}" if beside else self.out / LOCK
         self._fd: int | None = None
 
     def acquire(self) -> FolderLock:
         """Take the lock; returns ``self``. Held by another process: refused, or with ``wait``
         waited for (said once on stderr)."""
-        writable(self.out, self.what)
+        writable(self.path.parent, self.what)
         if fcntl is None or self._fd is not None:
             return self
         while True:
@@ -181,8 +185,8 @@ class FolderLock:
                 if not self.wait:
                     os.close(fd)
                     raise RobovaeError(f"robovae: {self.out}: another run is writing there "
-                                       f"(process {owner}, {LOCK}); wait for it to end or use "
-                                       "another output folder") from None
+                                       f"(process {owner}, {self.path.name}); wait for it to "
+                                       "end or use another output folder") from None
                 print(f"robovae: {self.out}: waiting for process {owner}, which is writing "
                       f"{self.what} there", file=sys.stderr, flush=True)
                 try:

@@ -99,6 +99,21 @@ def test_a_folder_lock_refuses_a_second_holder_and_is_gone_after(tmp_path):
     assert (tmp_path / "file").read_text() == "keep"
 
 
+def test_a_lock_beside_the_folder_leaves_the_folder_unmade(tmp_path):
+    """``beside``: the lock file is ``.<name>.robovae.lock`` next to ``out``, which stays absent
+    (an output renamed into place whole, as ``robovae interpolate``'s); a second holder is
+    refused naming that file."""
+    out = tmp_path / "runs" / "path"
+    with files.FolderLock(out, "the path", beside=True) as lock:
+        assert lock.path == tmp_path / "runs" / f".path{files.LOCK}" and lock.path.is_file()
+        assert not out.exists()
+        with pytest.raises(RobovaeError, match=rf"path: another run is writing there "
+                                               rf"\(process {os.getpid()}, \.path\.robovae"):
+            files.FolderLock(out, beside=True).acquire()
+        files.FolderLock(out).acquire().release()  # a lock inside out is another lock
+    assert not lock.path.exists()
+
+
 def test_a_killed_holder_leaves_no_lock(tmp_path):
     """A run killed outright leaves its lock file but not the lock (the kernel drops a dead
     process's ``flock``): the next run takes the folder."""

@@ -40,7 +40,9 @@ partial ``DIR``.
 
 Bad input is refused with one line before anything is written: a file that is not a robot
 (:class:`~robovae.errors.RobotFileError`), ``R < 0``, ``n < 1``, ``K < 2``, a checkpoint that is
-not one, or an ``--out`` that holds something else (:class:`~robovae.errors.RobovaeError`).
+not one, an ``--out`` that holds something else, or one another run is writing (a lock file
+``.<name>.robovae.lock`` beside it, :class:`~robovae.files.FolderLock`)
+(:class:`~robovae.errors.RobovaeError`).
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ import numpy as np
 import torch
 from torch_geometric.data import Batch
 
+from robovae.data.graph import RobotData
 from robovae.data.mjcf import mjcf_to_graph
 from robovae.errors import RobovaeError
 from robovae.files import FolderLock, writable
@@ -267,40 +270,52 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
         ``reason``; plus ``sheet`` (PNG path or None).
 
     Raises:
-        RobovaeError: ``steps < 2``, a bad checkpoint, ``out`` not empty or its folder not
-            writable. RobotFileError: ``a`` or ``b`` is not a robot.
+        RobovaeError: ``steps < 2``, a bad checkpoint, ``out`` not empty, written by another
+            run, or its folder not writable. RobotFileError: ``a`` or ``b`` is not a robot.
     """
-    from robovae.evaluate.render import contact_sheet
-    from robovae.generate.interpolate import interpolate
-
     check_interpolate(steps)
     out = Path(out)
     _check_out(out)
     writable(out.parent, "the path")
-    model = own_model(model)  # decoded in float64: never the caller's object
-    ga, gb = mjcf_to_graph(a, model.feature_set), mjcf_to_graph(b, model.feature_set)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        path = interpolate(model, ga, gb, steps=steps, out=tmp, validate=validate)
-        rows: list[dict[str, Any]] = []
-        for s in path:
-            assert s.path is not None  # written: interpolate was given a folder
-            rows.append({"t": round(s.t, 6), "path": str(s.path.relative_to(tmp)),
-                         "valid": s.validation.valid if s.validation else None,
-                         "reason": s.validation.reason if s.validation else None})
-        result: dict[str, Any] = {"a": str(a), "b": str(b), "steps": rows, "sheet": None}
-        if sheet:
-            drawn = [result["steps"][k] for k in sheet_steps(steps)]
-            labels = [f"t = {s['t']:.2f}" + (f"  {s['reason']}" if s["reason"] else "")
-                      for s in drawn]
-            contact_sheet([tmp / s["path"] for s in drawn], tmp / "sheet.png",
-                          columns=min(len(drawn), 6), labels=labels)
-            result["sheet"] = str(out / "sheet.png")
-        (tmp / "path.json").write_text(json.dumps(result, indent=1))
-        if out.exists():
-            out.rmdir()  # empty (checked above)
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    with FolderLock(out, "the path", beside=True):  # a second run into out is refused
+        _check_out(out)  # again: a run that ended as this one started filled it
+        model = own_model(model)  # decoded in float64: never the caller's object
+        ga, gb = mjcf_to_graph(a, model.feature_set), mjcf_to_graph(b, model.feature_set)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+        try:
+            result = {"a": str(a), "b": str(b),
+                      **_write_path(model, ga, gb, steps, tmp, validate, sheet)}
+            if result["sheet"]:
+                result["sheet"] = str(out / "sheet.png")
+            (tmp / "path.json").write_text(json.dumps(result, indent=1))
+            if out.exists():
+                out.rmdir()  # empty (checked above)
+            os.replace(tmp, out)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+    return result
+
+
+def _write_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int, folder: Path,
+                validate: bool, sheet: bool) -> dict[str, Any]:
+    """Write the path's steps and, with ``sheet``, its contact sheet into ``folder``; returns
+    the ``path.json`` content without its ends (``steps``, ``sheet``)."""
+    from robovae.evaluate.render import contact_sheet
+    from robovae.generate.interpolate import interpolate
+
+    rows: list[dict[str, Any]] = []
+    for s in interpolate(model, a, b, steps=steps, out=folder, validate=validate):
+        assert s.path is not None  # written: interpolate was given a folder
+        rows.append({"t": round(s.t, 6), "path": str(s.path.relative_to(folder)),
+                     "valid": s.validation.valid if s.validation else None,
+                     "reason": s.validation.reason if s.validation else None})
+    result: dict[str, Any] = {"steps": rows, "sheet": None}
+    if sheet:
+        drawn = [rows[k] for k in sheet_steps(steps)]
+        labels = [f"t = {s['t']:.2f}" + (f"  {s['reason']}" if s["reason"] else "")
+                  for s in drawn]
+        result["sheet"] = contact_sheet([folder / s["path"] for s in drawn],
+                                        folder / "sheet.png", columns=min(len(drawn), 6),
+                                        labels=labels)
     return result

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -193,6 +194,27 @@ def test_interpolate_refuses_bad_input(trained_nodes, files, tmp_path, capsys, c
     else:
         assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == (["path"] if case == "out" else [])
+
+
+def test_interpolate_refuses_an_out_another_run_is_writing(trained_nodes, files, tmp_path,
+                                                          capsys):
+    """Two paths into one ``--out``: the second is refused at once, one line naming the first's
+    process (until 2026-11-29 both ran; the one that ended second found the folder full and
+    ended in a traceback, its path lost)."""
+    from robovae.files import FolderLock
+
+    _, _, ckpt = trained_nodes
+    a, b, _ = files
+    out = tmp_path / "path"
+    argv = ["interpolate", str(a), str(b), "--ckpt", str(ckpt), "--steps", "3", "--out", str(out)]
+    with FolderLock(out, "the path", beside=True):  # the first run, still decoding
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1
+        assert f"path: another run is writing there (process {os.getpid()}, .path.robovae" in err
+        assert not out.exists()
+    assert main(argv) == 0 and (out / "path.json").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["path"]  # no lock, no temporary
 
 
 def test_interpolate_refuses_an_out_inside_a_file(trained_nodes, files, tmp_path, capsys):
