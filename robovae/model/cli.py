@@ -43,25 +43,43 @@ _CKPT_KEYWORDS = ("last", "best", "hpc", "registry")
 
 class CheckpointLock(L.Callback):
     """Hold the checkpoint folder of a ``fit`` run (:class:`~robovae.files.FolderLock`, rank 0,
-    from ``on_fit_start`` to the end of the run): a second ``robovae fit`` writing the same
+    from ``setup`` to the end of the run): a second ``robovae fit`` writing the same
     folder — the same config started twice, or another config's run given the same
     ``checkpoint.dirpath`` — is refused in one line, on every rank, before it trains. Until
     2026-11-29 both trained and overwrote each other's ``last.ckpt`` and deleted each other's
-    epoch checkpoints. ``validate``/``test``/``predict`` only read checkpoints: not held."""
+    epoch checkpoints. ``validate``/``test``/``predict`` only read checkpoints: not held.
+
+    A ``checkpoint.dirpath`` that is set is taken in ``setup``, before the checkpoint callback's
+    own ``setup`` (Lightning runs checkpoint callbacks last), so a refused run does not first
+    warn that the folder "exists and is not empty"; a folder the checkpoint callback derives
+    from the logger is known, and taken, only at ``on_fit_start``."""
 
     def __init__(self) -> None:
         self._lock: FolderLock | None = None
+        self._taken = False  # the folder was asked for in this run (on every rank)
+
+    def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
+        """Take a set ``dirpath`` for ``fit``."""
+        self._taken = False
+        ckpt = trainer.checkpoint_callback
+        if stage == "fit" and isinstance(ckpt, ModelCheckpoint) and ckpt.dirpath is not None:
+            self._take(trainer, ckpt.dirpath)
 
     def on_fit_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
-        """Take the folder on rank 0; every rank raises the refusal together."""
-        refused = None
+        """Take the folder the checkpoint callback resolved, when ``setup`` could not."""
         ckpt = trainer.checkpoint_callback  # typed as the base Checkpoint: ours has a dirpath
-        folder = ckpt.dirpath if isinstance(ckpt, ModelCheckpoint) else None
-        if trainer.is_global_zero and folder is not None:
+        if not self._taken and isinstance(ckpt, ModelCheckpoint) and ckpt.dirpath is not None:
+            self._take(trainer, ckpt.dirpath)
+
+    def _take(self, trainer: L.Trainer, folder: str | Path) -> None:
+        """Take ``folder`` on rank 0; every rank raises the refusal together."""
+        refused = None
+        if trainer.is_global_zero:
             try:
                 self._lock = FolderLock(folder, "checkpoints").acquire()
             except RobovaeError as e:
                 refused = str(e)
+        self._taken = True
         refused = trainer.strategy.broadcast(refused, src=0)
         if refused is not None:
             raise RobovaeError(refused)
@@ -106,10 +124,11 @@ class RoboVAECLI(LightningCLI):
             check_current_model(read_checkpoint(Path(ckpt)), ckpt)  # one-line RobovaeErrors
 
     def instantiate_trainer(self, **kwargs: Any) -> L.Trainer:
-        """The trainer, with :class:`CheckpointLock` among its callbacks."""
+        """The trainer, with :class:`CheckpointLock` first among its callbacks (its ``setup``
+        before the checkpoint callback's)."""
         trainer = super().instantiate_trainer(**kwargs)
         # Trainer.callbacks is set by Lightning's callback connector, undeclared on the class
-        trainer.callbacks.append(CheckpointLock())  # type: ignore[attr-defined]
+        trainer.callbacks.insert(0, CheckpointLock())  # type: ignore[attr-defined]
         return trainer
 
     def _weights_only(self) -> None:

@@ -339,12 +339,13 @@ def test_a_checkpoint_of_another_model_is_one_line(trained, tmp_path, capsys):
                        "it was trained with (its config, or robovae.model.checkpoint.load_model)")
 
 
-def test_a_second_fit_into_a_checkpoint_folder_in_use_is_refused(tmp_path, capsys, monkeypatch):
+def test_a_second_fit_into_a_checkpoint_folder_in_use_is_refused(tmp_path, capsys, monkeypatch,
+                                                                 recwarn):
     """Two ``robovae fit`` runs writing one checkpoint folder overwrote each other's
     ``last.ckpt`` and deleted each other's epoch checkpoints (measured: two ``tiny.yaml`` runs
     of other learning rates, both exit 0, one ``last.ckpt`` left, until 2026-11-29); the
-    second is refused before it trains while the first holds the folder, and a run holds it
-    only while it runs."""
+    second is refused before it trains while the first holds the folder (with no warning that
+    the folder is not empty before its line), and a run holds it only while it runs."""
     from robovae.files import LOCK, FolderLock
 
     monkeypatch.chdir(tmp_path)
@@ -355,6 +356,8 @@ def test_a_second_fit_into_a_checkpoint_folder_in_use_is_refused(tmp_path, capsy
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()[-1]
         assert err.startswith(f"robovae: {folder}: another run is writing there")
+        # refused before the checkpoint callback's setup warns of the folder in use
+        assert not any("exists and is not empty" in str(w.message) for w in recwarn)
         assert sorted(p.name for p in folder.iterdir()) == [LOCK]
     assert main(argv) == 0  # once the first has ended
     assert (folder / "last.ckpt").is_file() and not (folder / LOCK).exists()
