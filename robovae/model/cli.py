@@ -41,6 +41,12 @@ from robovae.model.vae import RoboVAE
 _CKPT_KEYWORDS = ("last", "best", "hpc", "registry")
 
 
+def _holds_files(folder: str | Path) -> bool:
+    """``folder`` exists and is not empty."""
+    path = Path(folder)
+    return path.is_dir() and any(path.iterdir())
+
+
 class CheckpointLock(L.Callback):
     """Hold the checkpoint folder of a ``fit`` run (:class:`~robovae.files.FolderLock`, rank 0,
     from ``setup`` to the end of the run): a second ``robovae fit`` writing the same
@@ -49,21 +55,24 @@ class CheckpointLock(L.Callback):
     2026-11-29 both trained and overwrote each other's ``last.ckpt`` and deleted each other's
     epoch checkpoints. ``validate``/``test``/``predict`` only read checkpoints: not held.
 
-    A ``checkpoint.dirpath`` that is set is taken in ``setup``, before the checkpoint callback's
-    own ``setup`` (Lightning runs checkpoint callbacks last), so a refused run does not first
-    warn that the folder "exists and is not empty"; a folder the checkpoint callback derives
-    from the logger is known, and taken, only at ``on_fit_start``."""
+    A ``checkpoint.dirpath`` that is set and holds files (a run's, or its lock) is taken in
+    ``setup``, before the checkpoint callback's own ``setup`` (Lightning runs checkpoint
+    callbacks last), so a refused run does not first warn that the folder "exists and is not
+    empty"; an empty or new folder is taken at ``on_fit_start``, after that callback looked at
+    it (taken earlier, the lock file itself would set off the warning), and so is a folder the
+    checkpoint callback derives from the logger, known only then."""
 
     def __init__(self) -> None:
         self._lock: FolderLock | None = None
         self._taken = False  # the folder was asked for in this run (on every rank)
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
-        """Take a set ``dirpath`` for ``fit``."""
+        """Take a set ``dirpath`` that holds files, for ``fit``."""
         self._taken = False
         ckpt = trainer.checkpoint_callback
-        if stage == "fit" and isinstance(ckpt, ModelCheckpoint) and ckpt.dirpath is not None:
-            self._take(trainer, ckpt.dirpath)
+        folder = ckpt.dirpath if isinstance(ckpt, ModelCheckpoint) else None
+        if stage == "fit" and folder is not None and _holds_files(folder):
+            self._take(trainer, folder)
 
     def on_fit_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
         """Take the folder the checkpoint callback resolved, when ``setup`` could not."""
