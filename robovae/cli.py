@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
@@ -428,7 +429,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _main(argv, explicit)
 
 
+#: Errors of the disk a run writes to, not of the run: said in one line, exit status 1.
+DISK_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
+
+
 def _main(argv: list[str], explicit: bool) -> int:
+    args = None
     try:
         if argv and argv[0] in LIGHTNING_COMMANDS:
             from robovae.model.cli import run_lightning_cli
@@ -445,6 +451,13 @@ def _main(argv: list[str], explicit: bool) -> int:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else str(e)
         print(msg if str(msg).startswith("robovae") else f"robovae: {msg}", file=sys.stderr)
         return 2
+    except OSError as e:  # the disk filled up (or became read-only) while the run wrote
+        if e.errno not in DISK_ERRORS:
+            raise
+        where = e.filename or getattr(args, "out", None) or "the output"
+        print(f"robovae: {where}: cannot write there ({e.strerror}); what was written whole "
+              "is kept", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -33,15 +33,17 @@ __all__ = ["LOCK", "FolderLock", "atomic_json", "atomic_write", "robot_files", "
 _ATTEMPTS = 100  # temporary names tried before giving up
 
 
-def atomic_write(path: str | os.PathLike, text: str, durable: bool = True) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically; returns ``path``.
+def atomic_write(path: str | os.PathLike, text: str | bytes | memoryview,
+                 durable: bool = True) -> Path:
+    """Write ``text`` (a string as UTF-8, or bytes as they are) to ``path`` atomically;
+    returns ``path``.
 
     The temporary file is ``.<name>.<pid>.tmp`` in ``path``'s folder (``.<name>.<pid>.<k>.tmp``
     when that name is taken, e.g. by a crashed writer of the same pid), created exclusively
     with the mode an ordinary ``open`` gives (``0o666`` less the umask), fsync'ed when
     ``durable`` (callers that sync a whole batch at once, e.g. with ``os.sync``, may skip it),
     then moved onto ``path``. On any error the temporary file is removed and ``path`` is left
-    as it was.
+    as it was; an ``OSError`` of the writing (a full disk) names ``path``.
     """
     path = Path(path)
     for k in range(_ATTEMPTS):
@@ -54,11 +56,13 @@ def atomic_write(path: str | os.PathLike, text: str, durable: bool = True) -> Pa
                 raise
     try:
         try:
-            data = text.encode("utf-8")
+            data = memoryview(text.encode("utf-8") if isinstance(text, str) else text)
             while data:
                 data = data[os.write(fd, data):]
             if durable:
                 os.fsync(fd)
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, str(path)) from None
         finally:
             os.close(fd)
         os.replace(tmp, path)

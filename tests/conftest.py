@@ -58,6 +58,20 @@ def in_fresh_python(code: str) -> tuple[Any, list[str], str]:
     return result, loaded, run.stderr
 
 
+def with_file_size_limit(limit: int) -> Any:
+    """A ``preexec_fn`` for ``subprocess``: files the child writes cannot grow past ``limit``
+    bytes (``RLIMIT_FSIZE``; a write past it fails with ``EFBIG``, as a full disk fails one
+    with ``ENOSPC``), and ``SIGXFSZ``, which would kill the child, is ignored."""
+    import resource
+    import signal
+
+    def limit_files() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE,
+                           (limit, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+    return limit_files
+
+
 def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
     """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
     parent, stack = [-1], [0]

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import io
 import json
 import logging
 import os
 from collections.abc import Callable, Sequence
 from functools import cache
 from pathlib import Path
+from typing import IO, cast
 
 import torch
 from torch_geometric.data import Data, InMemoryDataset
@@ -29,7 +31,7 @@ from robovae.data.procedural.batch import procedural_graphs
 from robovae.data.sources import resolve_sources, source_list
 from robovae.data.workers import process_pool
 from robovae.errors import RobotFileError, RobovaeError
-from robovae.files import FolderLock, writable
+from robovae.files import FolderLock, atomic_json, writable
 from robovae.settings import check_settings, integer
 
 log = logging.getLogger("robovae")
@@ -89,6 +91,25 @@ def reader_digest() -> str:
     for name in _READER_MODULES:
         h.update(name.encode() + b"\0" + (Path(__file__).parent / name).read_bytes())
     return h.hexdigest()[:12]
+
+
+class _Sink:
+    """A binary file for ``torch.save`` that keeps the ``OSError`` of its last failed write:
+    ``torch.save`` replaces it with a ``RuntimeError`` that does not say the disk is full."""
+
+    def __init__(self, f: io.BufferedWriter) -> None:
+        self.f = f
+        self.error: OSError | None = None
+
+    def write(self, data: bytes) -> int:
+        try:
+            return self.f.write(data)
+        except OSError as e:
+            self.error = e
+            raise
+
+    def flush(self) -> None:
+        self.f.flush()
 
 
 class RobotDataset(InMemoryDataset):
@@ -189,12 +210,26 @@ class RobotDataset(InMemoryDataset):
         """Collate ``data_list`` and write the cache atomically: to a temporary file beside
         ``path``, then ``os.replace``. A process that has the old file memory-mapped
         (:meth:`load`) keeps reading the old file's pages, never a half-written one (rewriting
-        it in place, as ``force_reload`` would, could end such a process with SIGBUS)."""
+        it in place, as ``force_reload`` would, could end such a process with SIGBUS).
+
+        Raises:
+            OSError: naming ``path``, when the file cannot be written (a full disk: ``torch.save``
+                itself reports that as a ``RuntimeError`` of its zip writer).
+        """
         data, slices = cls.collate(data_list)
         tmp = f"{path}.{os.getpid()}.tmp"
         try:
-            torch.save((data.to_dict(), slices, data.__class__), tmp)
+            with open(tmp, "wb") as f:
+                sink = _Sink(f)
+                try:
+                    torch.save((data.to_dict(), slices, data.__class__), cast(IO[bytes], sink))
+                except RuntimeError:
+                    if sink.error is None:
+                        raise
+                    raise sink.error from None
             os.replace(tmp, path)
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, path) from None
         finally:
             if os.path.exists(tmp):
                 os.unlink(tmp)
@@ -258,7 +293,7 @@ class RobotDataset(InMemoryDataset):
                   "duplicates": duplicates, "warnings": self._resolved.warnings,
                   "sources": self.sources, "feature_set": self.feature_set}
         self.save(kept, self.processed_paths[0])
-        Path(self.processed_paths[1]).write_text(json.dumps(report, indent=1))
+        atomic_json(self.processed_paths[1], report)
 
     # --- access ----------------------------------------------------------------------------
 

@@ -42,12 +42,11 @@ def refusal(path: str | Path | None, e: BaseException) -> RobovaeError:
     return RobovaeError(f"robovae:{where} refused to load checkpoint ({reason})")
 
 
-def read_checkpoint(path: str | os.PathLike[str]) -> dict:
-    """The contents of a checkpoint file, read with ``torch.load(weights_only=True)``.
+def check_archive(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a ``Path``, when it is a file with the zip archive ``torch.save`` writes.
 
     Raises:
-        RobovaeError: missing file, not a checkpoint, or a checkpoint that holds anything but
-            tensors, numbers, strings and containers (no pickled object is ever built).
+        RobovaeError: missing file, or another kind of file (a torn checkpoint among them).
     """
     path = Path(path)
     if not path.is_file():
@@ -55,6 +54,17 @@ def read_checkpoint(path: str | os.PathLike[str]) -> dict:
     if not zipfile.is_zipfile(path):  # torch.save has written zip archives since torch 1.6
         raise RobovaeError(f"robovae: {path}: not a checkpoint (not a zip archive: another "
                            "kind of file, or one cut short)")
+    return path
+
+
+def read_checkpoint(path: str | os.PathLike[str]) -> dict:
+    """The contents of a checkpoint file, read with ``torch.load(weights_only=True)``.
+
+    Raises:
+        RobovaeError: missing file, not a checkpoint, or a checkpoint that holds anything but
+            tensors, numbers, strings and containers (no pickled object is ever built).
+    """
+    path = check_archive(path)
     try:
         ckpt = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # UnpicklingError for planted objects, RuntimeError for bad zips

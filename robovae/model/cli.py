@@ -29,12 +29,14 @@ from typing import Any
 import lightning as L
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import ArgsType, LightningArgumentParser, LightningCLI
+from lightning.pytorch.plugins.io import TorchCheckpointIO
 
 from robovae.data.datamodule import RobotDataModule
 from robovae.errors import RobovaeError
 from robovae.evaluate.callbacks import ReconstructionMetrics
 from robovae.files import FolderLock
 from robovae.model.checkpoint import check_current_model, read_checkpoint, refusal
+from robovae.model.checkpoint_io import AtomicCheckpointIO
 from robovae.model.vae import RoboVAE
 
 # ``ckpt_path`` values that Lightning resolves itself (the file is checked when it is read)
@@ -134,10 +136,14 @@ class RoboVAECLI(LightningCLI):
 
     def instantiate_trainer(self, **kwargs: Any) -> L.Trainer:
         """The trainer, with :class:`CheckpointLock` first among its callbacks (its ``setup``
-        before the checkpoint callback's)."""
+        before the checkpoint callback's), and checkpoints written whole
+        (:class:`~robovae.model.checkpoint_io.AtomicCheckpointIO`, unless a checkpoint plugin
+        was given)."""
         trainer = super().instantiate_trainer(**kwargs)
         # Trainer.callbacks is set by Lightning's callback connector, undeclared on the class
         trainer.callbacks.insert(0, CheckpointLock())  # type: ignore[attr-defined]
+        if type(trainer.strategy.checkpoint_io) is TorchCheckpointIO:  # not a plugin of the user's
+            trainer.strategy.checkpoint_io = AtomicCheckpointIO()
         return trainer
 
     def _weights_only(self) -> None:

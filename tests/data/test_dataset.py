@@ -131,6 +131,28 @@ def test_a_cache_folder_that_cannot_be_made_is_one_line(tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1 and (tmp_path / "file").read_text() == "keep"
 
 
+def test_a_full_disk_while_the_cache_is_written_is_one_line(tmp_path):
+    """``robovae data`` whose cache file cannot be written (the disk full; here the file grows
+    past ``RLIMIT_FSIZE``): exit status 1, one line naming the cache file, no partial cache
+    left (until 2026-11-29 a traceback of ``torch.save``'s zip writer, ``RuntimeError: [enforce
+    fail at inline_container.cc] unexpected pos``, which did not say the disk was full)."""
+    import subprocess
+    import sys
+
+    from tests.conftest import with_file_size_limit
+
+    root = tmp_path / "cache"
+    run = subprocess.run([sys.executable, "-m", "robovae.cli", "data", "--root", str(root),
+                          "--source", "procedural:n=40,seed=0", "--jobs", "1"],
+                         capture_output=True, text=True, preexec_fn=with_file_size_limit(65_536))
+    assert run.returncode == 1, run.stderr[-2000:]
+    assert "Traceback" not in run.stderr
+    last = run.stderr.splitlines()[-1]
+    assert last.startswith(f"robovae: {root / 'processed'}/robots_") and last.endswith(
+        ".pt: cannot write there (File too large); what was written whole is kept")
+    assert not list(root.rglob("*.pt"))
+
+
 def test_one_source_string_is_one_source_and_jobs_are_checked(tmp_path):
     """``RobotDataset(root, "procedural:n=3")``: one source (until 2026-11-29 each character was
     a source: ``"zoo"`` read files ``z``, ``o``, ``o``); ``jobs`` an integer >= 0."""

@@ -122,8 +122,84 @@ def test_lightning_cli_refuses_a_planted_last_checkpoint(planted, tmp_path, caps
     err = capsys.readouterr().err  # after the dataset's progress bar: one line, no traceback
     assert "Traceback" not in err and err.endswith("\n")
     assert err.splitlines()[-1].startswith(
-        "robovae: refused to load checkpoint (it holds a pickled object")
+        f"robovae: {ckpt_dir / 'last.ckpt'}: refused to load checkpoint (it holds a pickled "
+        "object")
     assert not marker.exists()
+
+
+def test_a_torn_last_checkpoint_is_one_line(trained, tmp_path, capsys, monkeypatch):
+    """A ``last.ckpt`` cut short (a run killed while writing it) given as ``--ckpt_path last``,
+    which Lightning resolves and reads itself: one line naming the file (until 2026-11-29
+    ``torch.load``'s traceback, ``OSError: [Errno 22] Invalid argument``)."""
+    monkeypatch.chdir(tmp_path)
+    ckpt_dir = tmp_path / "ckpt"
+    ckpt_dir.mkdir()
+    (ckpt_dir / "last.ckpt").write_bytes(Path(trained[2]).read_bytes()[:65536])
+    code = main(["fit", "--config", TINY, f"--data.root={tmp_path / 'cache'}",
+                 "--trainer.logger=false", f"--checkpoint.dirpath={ckpt_dir}",
+                 "--ckpt_path", "last"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.splitlines()[-1] == (f"robovae: {ckpt_dir / 'last.ckpt'}: not a checkpoint (not a "
+                                    "zip archive: another kind of file, or one cut short)")
+
+
+def test_checkpoints_are_written_whole(trained, tmp_path):
+    """``AtomicCheckpointIO`` writes Lightning's bytes, and a write that fails (a full disk;
+    here ``RLIMIT_FSIZE``) names the file and leaves the checkpoint that was there whole: no
+    torn ``last.ckpt`` for ``--ckpt_path last`` to fail on."""
+    import errno
+    import subprocess
+    import sys
+
+    from lightning.pytorch.plugins.io import TorchCheckpointIO
+
+    from robovae.model.checkpoint_io import AtomicCheckpointIO
+    from tests.conftest import with_file_size_limit
+
+    ckpt = torch.load(trained[2], weights_only=True)
+    ours, theirs = tmp_path / "ours.ckpt", tmp_path / "theirs.ckpt"
+    AtomicCheckpointIO().save_checkpoint(ckpt, ours)
+    TorchCheckpointIO().save_checkpoint(ckpt, theirs)
+    assert ours.read_bytes() == theirs.read_bytes()
+    small = tmp_path / "last.ckpt"
+    AtomicCheckpointIO().save_checkpoint({"epoch": 1}, small)
+    before = small.read_bytes()
+    code = ("import sys, torch\nfrom robovae.model.checkpoint_io import AtomicCheckpointIO\n"
+            "try:\n    AtomicCheckpointIO().save_checkpoint({'w': torch.zeros(100_000)}, "
+            "sys.argv[1])\nexcept OSError as e:\n    print(e.errno, e.filename)\n")
+    run = subprocess.run([sys.executable, "-c", code, str(small)], capture_output=True,
+                         text=True, preexec_fn=with_file_size_limit(100_000), check=True)
+    assert run.stdout.split() == [str(errno.EFBIG), str(small)]
+    assert small.read_bytes() == before
+    assert AtomicCheckpointIO().load_checkpoint(small) == {"epoch": 1}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["last.ckpt", "ours.ckpt",
+                                                          "theirs.ckpt"]
+
+
+def test_fit_on_a_full_disk_is_one_line(tmp_path):
+    """``robovae fit`` whose checkpoint cannot be written (the disk full; here the checkpoint
+    grows past ``RLIMIT_FSIZE``, the dataset cache does not): exit status 1, one line naming
+    the checkpoint file, no torn file left (until 2026-11-29 Lightning's traceback, naming
+    fsspec's temporary file in the system's temporary folder)."""
+    import subprocess
+    import sys
+
+    from tests.conftest import with_file_size_limit
+
+    folder = tmp_path / "ckpt"
+    run = subprocess.run([sys.executable, "-m", "robovae.cli", "fit", "--config", TINY,
+                          f"--data.root={tmp_path / 'cache'}", "--trainer.logger=false",
+                          "--trainer.max_epochs=1", f"--checkpoint.dirpath={folder}"],
+                         capture_output=True, text=True, cwd=tmp_path,
+                         preexec_fn=with_file_size_limit(200_000))
+    assert run.returncode == 1, run.stderr[-2000:]
+    assert "Traceback" not in run.stderr
+    assert run.stderr.splitlines()[-1] == (
+        f"robovae: {folder / 'epoch=0-step=3.ckpt'}: cannot write there (File too large); what "
+        "was written whole is kept")
+    assert list(folder.iterdir()) == []
 
 
 def test_lightning_trainer_default_is_weights_only(trained, planted, tmp_path):
