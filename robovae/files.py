@@ -170,7 +170,7 @@ class FolderLock:
 
     def __init__(self, out: str | os.PathLike, what: str = "files", wait: bool = False,
                  beside: bool = False) -> None:
-        self.out, self.what, self.wait, self.beside = Path(out), what, wait, beside
+        self.out, self.what, self.wait = Path(out), what, wait
         self.path = self.out.parent / f".{self.out.name}{LOCK}" if beside else self.out / LOCK
         self._fd: int | None = None
 
