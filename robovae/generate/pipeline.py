@@ -239,8 +239,10 @@ def generate(
     checkpoint's ``node_temperature``, else ``temperature``) the node latents' noise (the detail
     of each node). ``mirror``: near-mirror
     limb pairs become exact mirror images (:func:`~robovae.generate.symmetry.mirror_limbs`,
-    reported as ``mirror_limbs``) and a stray limb beside them gets its mirror image
-    (:func:`~robovae.generate.symmetry.complete_pairs`, reported as ``complete_pairs``).
+    reported as ``mirror_limbs``), a stray limb beside them gets its mirror image
+    (:func:`~robovae.generate.symmetry.complete_pairs`, reported as ``complete_pairs``) and
+    near-equal limbs on the sagittal plane become equal
+    (:func:`~robovae.generate.symmetry.twin_limbs`, reported as ``twin_limbs``).
     ``quality``: measure every valid robot (attached, symmetric, standing;
     :func:`~robovae.evaluate.quality.measure.robot_quality`). ``controls``: the validation's
     simulation, ``"held"`` (the first second of the standing test) or ``"zero"``
@@ -382,12 +384,14 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     Writing and validation run in ``pool`` (or ``jobs`` worker processes, 0: all cores; 1: in
     this process). With ``floating``, a robot whose root is a single joint gets a floating
     base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
-    ``mirror``, near-mirror limb pairs are mirrored and stray limbs paired
-    (:func:`~robovae.generate.symmetry.mirror_limbs`, :func:`~robovae.generate.symmetry.
-    complete_pairs`, listed as ``mirror_limbs``, ``complete_pairs``); with ``quality`` (and
-    ``validate``), every valid robot's quality measures go into its record under ``quality``;
-    ``controls``: the validation's simulation (:mod:`robovae.generate.validate`); ``stance``:
-    the writer's stance rules (:mod:`robovae.generate.stance`).
+    ``mirror``, near-mirror limb pairs are mirrored, stray limbs paired and twins on the plane
+    made equal (:func:`~robovae.generate.symmetry.mirror_limbs`,
+    :func:`~robovae.generate.symmetry.complete_pairs`, :func:`~robovae.generate.symmetry.
+    twin_limbs`, listed as ``mirror_limbs``, ``complete_pairs``, ``twin_limbs``); with
+    ``quality`` (and ``validate``), every valid robot's quality measures go into its record
+    under ``quality``; ``controls``: the validation's simulation
+    (:mod:`robovae.generate.validate`); ``stance``: the writer's stance rules
+    (:mod:`robovae.generate.stance`).
     """
     records, items = prepare_records(model, indices, z, graphs, out, seed=seed,
                                      temperature=temperature, validate=validate, scene=scene,

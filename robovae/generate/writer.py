@@ -104,7 +104,8 @@ class WriteResult:
 #: robots written another way. Name each change that alters written files here.
 WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous joints (and "
           "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
-          "strengthened, soles under biped point feet")
+          "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
+          "equal (decoded graphs)")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:

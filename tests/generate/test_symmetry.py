@@ -15,6 +15,7 @@ from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.tree_arrays import TreeArrays
 from robovae.data.zoo import zoo_files
+from robovae.evaluate.quality.symmetry import anatomy
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.graph_view import GraphView
 from robovae.generate.symmetry import (
@@ -23,6 +24,7 @@ from robovae.generate.symmetry import (
     limbs,
     mirror_limbs,
     mirrored_pairs,
+    twin_limbs,
 )
 from robovae.generate.writer import graph_to_spec
 
@@ -187,6 +189,55 @@ def test_complete_pairs_leaves_other_limbs_alone():
     # a robot without a pair (one leg off the plane) is not given a second one
     lone = _without(g, set(roots[1:]))
     assert complete_pairs(lone) == (lone, False)
+
+
+def _casters(g) -> tuple[GraphView, list[int]]:
+    """The graph's view and the roots of its two caster limbs (on the sagittal plane, two links:
+    a swivel and a wheel)."""
+    v = GraphView(g, FS)
+    roots = [r for r in limbs(v)[1] if len(_subtree_links(v, r)) == 2
+             and abs(v.get(_subtree_links(v, r)[0], "link.pos")[1]) < 1e-9]
+    return v, roots
+
+
+def test_unequal_casters_are_made_equal_where_they_are():
+    """A mobile manipulator on two drive wheels and two casters on the sagittal plane (front
+    and back, equal, as every such training robot has them), its back caster made 30 % longer
+    and heavier, as a decoder might: the back caster becomes a copy of the front one, attached
+    where it was; the equal casters of the procedural robot are left alone."""
+    g = model_to_graph(procedural_spec(3, "mobile_manipulator").compile(), "paper34", name="mm")
+    v, (front, back) = _casters(g)
+    assert twin_limbs(g) == (g, False)  # already equal
+    pos, mass = FS.slice("link.pos"), FS.columns.index("link.mass")
+    odd = g.clone()
+    for k, n in enumerate(_subtree_links(v, back)):
+        odd.x[n, pos] *= 1.3 if k else 1.1  # its place moved too
+        odd.x[n, mass] *= 1.3
+    out, changed = twin_limbs(odd)
+    assert changed
+    assert torch.equal(out.parent, odd.parent) and torch.equal(out.node_type, odd.node_type)
+    w, (f2, b2) = _casters(out)
+    src, dst = _subtree_links(w, f2), _subtree_links(w, b2)
+    assert torch.equal(out.x[dst[0], pos], odd.x[_subtree_links(v, back)[0], pos])  # its place
+    assert torch.equal(out.x[dst[1:]], out.x[src[1:]])  # the rest of it: the front caster's
+    keep = [c for c in range(FS.dim) if c not in range(pos.start, pos.stop)]
+    assert torch.equal(out.x[dst[0], keep], out.x[src[0], keep])
+    # written and measured as the quality table does: the casters pair again
+    pairs = [anatomy(graph_to_spec(x, FS)[0]).pairs for x in (g, odd, out)]
+    assert pairs[0] == pairs[2] == pairs[1] + 1
+
+
+def test_twin_limbs_leaves_robots_with_equal_or_paired_limbs_alone():
+    """Real robots whose limbs on the plane are equal (walker2d's legs) or who have none are
+    not changed; the half-cheetah's front and back legs (same topology, unequal) are made
+    equal: one of three zoo robots that differ from the training corpus's rule
+    (docs/generation.md)."""
+    for name in ("gym_ant", "gym_humanoid", "dmc_quadruped", "gym_walker2d", "gym_hopper"):
+        g = model_to_graph(load_robot(ZOO[name]).model, "paper34")
+        assert twin_limbs(g) == (g, False), name
+    cheetah = model_to_graph(load_robot(ZOO["gym_half_cheetah"]).model, "paper34")
+    assert twin_limbs(cheetah)[1]
+    assert twin_limbs(_hexapod())[0] is _hexapod()  # legs off the plane: mirror_limbs' work
 
 
 def test_decoded_fixes_give_the_same_robot_from_a_graph_and_from_its_arrays():

@@ -83,17 +83,15 @@ def written_files(n: int, root: str | os.PathLike = "data_cache", seed: int = 0,
                   zoo: bool = True) -> list[Path]:
     """``root/raw/quality_written_s<seed>/robot_<i>/robot.xml``: the ``paper34`` graphs of
     ``n`` procedural robots (seeds ``seed …``, :func:`~robovae.data.procedural.procedural_graphs`)
-    and, with ``zoo``, of the installed zoo robots, each given a floating base
-    (:func:`~robovae.generate.rules.floating_base`), its near-mirror limbs mirrored
-    (:func:`~robovae.generate.symmetry.mirror_limbs`, :func:`~robovae.generate.symmetry.
-    complete_pairs`) and written by
+    and, with ``zoo``, of the installed zoo robots, each given ``robovae generate``'s fixes of a
+    decoded graph (:func:`~robovae.generate.fixes.decoded_fixes`: a floating base, near-mirror
+    limbs mirrored, near-equal limbs on the plane made equal, slides limited) and written by
     :func:`~robovae.generate.writer.write_robot`, as ``robovae generate`` does (written on first
     use, reused after)."""
     from robovae.data.loading import load_robot
     from robovae.data.mjcf import model_to_graph
     from robovae.data.zoo import zoo_files
-    from robovae.generate.rules import floating_base
-    from robovae.generate.symmetry import complete_pairs, mirror_limbs
+    from robovae.generate.fixes import decoded_fixes
     from robovae.generate.writer import write_robot
 
     out = Path(root) / "raw" / f"quality_written_s{seed}"
@@ -104,8 +102,7 @@ def written_files(n: int, root: str | os.PathLike = "data_cache", seed: int = 0,
     for i, g in enumerate(graphs):
         folder = out / f"robot_{i:06d}"
         if not (folder / "robot.xml").is_file():
-            tree = mirror_limbs(floating_base(g, "paper34")[0], "paper34")[0]
-            tree = complete_pairs(tree, "paper34")[0]
+            tree, _ = decoded_fixes(g, "paper34")
             write_robot(tree, folder, "paper34", name=f"written_{i:06d}", scene=False, check=False,
                         durable=False)
         paths.append(folder / "robot.xml")
