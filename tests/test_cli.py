@@ -154,3 +154,58 @@ def test_option_mistakes_are_refused_before_torch_is_imported(tmp_path) -> None:
     assert "--steps must be an integer in [2, 10000]" in lines[11]
     assert "no_such_folder: no such folder of real robots (--real)" in lines[12]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_ends_a_run_in_one_line(trained, tmp_path) -> None:
+    """Ctrl-C (SIGINT to the command's process group, as a terminal sends it) in ``robovae
+    generate`` with two workers: the run ends at once with exit status 130 and one line, the
+    manifest holds whole records and the folder is free for the same command to go on. Until
+    2026-11-29 Python's ``KeyboardInterrupt`` traceback of wherever the run was, the workers'
+    tracebacks too, and in 2 runs of 20 a process that never ended (its worker queue's feeder
+    thread, blocked on a pipe no worker read any more, joined at exit)."""
+    import json
+    import signal
+    import time
+
+    out = tmp_path / "gen"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robovae.cli", "generate", "--ckpt", str(trained[2]), "-n",
+         "100000", "--out", str(out), "--jobs", "2", "--no-quality"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: (signal.signal(signal.SIGINT, signal.SIG_DFL), os.setpgrp()))
+    try:
+        deadline = time.monotonic() + 120
+        manifest = out / "manifest.jsonl"
+        while not (manifest.is_file() and manifest.stat().st_size) and proc.poll() is None:
+            assert time.monotonic() < deadline, "no robot written in 120 s"
+            time.sleep(0.2)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 130, err[-2000:]
+    assert "robovae: interrupted; the files written are whole" in err
+    assert "KeyboardInterrupt" not in err
+    records = [json.loads(line) for line in manifest.read_text().splitlines()]
+    assert records and all((out / r["path"]).is_file() for r in records)
+    assert not (out / ".robovae.lock").exists()
+
+
+def test_an_interrupted_import_is_an_interrupt() -> None:
+    """Ctrl-C inside an extension module's import surfaces as ``ImportError: initialization
+    failed`` raised from it (MuJoCo's, seen): the CLI still reads it as Ctrl-C."""
+    from robovae.cli import _interrupted
+
+    try:
+        try:
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as k:
+                raise ImportError("initialization failed") from k
+        except ImportError as i:
+            raise ImportError("initialization failed") from i
+    except ImportError as e:
+        assert _interrupted(e)
+    assert not _interrupted(ValueError("x")) and not _interrupted(None)

@@ -28,6 +28,7 @@ to them, orphaned, for as long as those take (minutes for ``robovae gait``).
 from __future__ import annotations
 
 import os
+import signal
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context, parent_process
 from threading import Thread
@@ -62,6 +63,12 @@ class WorkerPool(ProcessPoolExecutor):
             stop()
             return
         workers = list((self._processes or {}).values())  # shutdown() forgets them
+        # the queue's feeder thread may be blocked writing into the pipe to the workers, which
+        # will read no more: joined at exit (the queue's finalizer), it hung the process for
+        # ever (Ctrl-C in robovae generate: 2 runs of 20); dropped with the process instead
+        queue = getattr(self, "_call_queue", None)
+        if queue is not None:
+            queue.cancel_join_thread()
         self.shutdown(wait=False, cancel_futures=True)
         for process in workers:
             try:
@@ -86,9 +93,13 @@ def exit_with_parent() -> None:
     """In a worker process: a daemon thread that waits for the parent process's end (its
     sentinel, :meth:`multiprocessing.process.BaseProcess.join`) and then ends this process at
     once (``os._exit(1)``: the work in hand is lost with the parent that asked for it).
-    Nothing in a process without a ``multiprocessing`` parent."""
+    Nothing in a process without a ``multiprocessing`` parent. Ctrl-C is the parent's to
+    handle (it ends its workers, :meth:`WorkerPool.terminate`): a worker ignores ``SIGINT``,
+    which a terminal sends to every process of the command, instead of printing its own
+    ``KeyboardInterrupt`` traceback."""
     parent = parent_process()
     if parent is not None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         Thread(target=_end_after, args=(parent,), name="robovae-exit-with-parent",
                daemon=True).start()
 

@@ -311,7 +311,7 @@ def generate(
                     _finish(manifest, *queued, bar)
         finally:
             torch.set_num_threads(threads)
-        bar.close()
+            bar.close()  # on Ctrl-C too: its last line before the run's last word
         return summarize(model, out, n, len(todo), validate, time.perf_counter() - start)
 
 
