@@ -14,18 +14,21 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
-import errno
 import sys
 import threading
-import warnings
-from collections.abc import Iterator, Sequence
-from concurrent.futures import InvalidStateError
+from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
 
 from robovae.errors import RobovaeError
 from robovae.evaluate.tables import format_table
+from robovae.exits import (
+    DISK_ERRORS,
+    INTERRUPTED,
+    interrupted,
+    one_line_warnings,
+    quiet_after_interrupt,
+)
 
 LIGHTNING_COMMANDS = ("fit", "validate", "test", "predict")
 #: Robots ``robovae data`` lists (the build report holds them all).
@@ -405,50 +408,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-@contextlib.contextmanager
-def _one_line_warnings() -> Iterator[None]:
-    """robovae's own warnings (``robovae: ...``) print as their one line, not with Python's
-    second line of source; other warnings as Python prints them."""
-    python_format = warnings.formatwarning
-
-    def fmt(message: Warning | str, category: type[Warning], filename: str, lineno: int,
-            line: str | None = None) -> str:
-        if str(message).startswith("robovae"):
-            return f"{message}\n"
-        return python_format(message, category, filename, lineno, line)
-
-    warnings.formatwarning = fmt
-    try:
-        yield
-    finally:
-        warnings.formatwarning = python_format
-
-
-def _interrupted(e: BaseException | None) -> bool:
-    """``e`` is Ctrl-C's ``KeyboardInterrupt``, or an error it caused: an extension module
-    interrupted in its import raises ``ImportError: initialization failed`` from it."""
-    seen: set[int] = set()
-    while e is not None and id(e) not in seen:
-        if isinstance(e, KeyboardInterrupt):
-            return True
-        seen.add(id(e))
-        e = e.__cause__ or e.__context__
-    return False
-
-
-def _quiet_after_interrupt(args: threading.ExceptHookArgs) -> None:
-    """After Ctrl-C, a worker pool's manager thread may still fail on the futures the
-    interrupt cancelled (Python 3.11's ``ProcessPoolExecutor`` sets an error on a cancelled
-    future: ``InvalidStateError``); the run is over, so that is not printed. Other errors of
-    threads are, as Python prints them."""
-    if not issubclass(args.exc_type, InvalidStateError):
-        threading.__excepthook__(args)
-
-
-#: Exit status of a run ended by Ctrl-C (the shells' 128 + SIGINT).
-INTERRUPTED = 130
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``robovae`` console script. Ctrl-C ends a run with one line and exit
     status :data:`INTERRUPTED` (every file is written whole or not at all: ``generate``,
@@ -456,20 +415,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     again), not with Python's traceback of wherever the run was."""
     explicit = argv is not None
     argv = list(sys.argv[1:] if argv is None else argv)
-    with _one_line_warnings():
+    with one_line_warnings():
         try:
             return _main(argv, explicit)
         except BaseException as e:
-            if not _interrupted(e):
+            if not interrupted(e):
                 raise
-            threading.excepthook = _quiet_after_interrupt
+            threading.excepthook = quiet_after_interrupt
             print("\nrobovae: interrupted; the files written are whole (generate and optimize "
                   "go on from them when run again)", file=sys.stderr)
             return INTERRUPTED
-
-
-#: Errors of the disk a run writes to, not of the run: said in one line, exit status 1.
-DISK_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
 
 
 def _main(argv: list[str], explicit: bool) -> int:

@@ -196,7 +196,7 @@ def test_ctrl_c_ends_a_run_in_one_line(trained, tmp_path) -> None:
 def test_an_interrupted_import_is_an_interrupt() -> None:
     """Ctrl-C inside an extension module's import surfaces as ``ImportError: initialization
     failed`` raised from it (MuJoCo's, seen): the CLI still reads it as Ctrl-C."""
-    from robovae.cli import _interrupted
+    from robovae.exits import interrupted as _interrupted
 
     try:
         try:
