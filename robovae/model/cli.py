@@ -69,11 +69,15 @@ class CheckpointLock(L.Callback):
         self._taken = False  # the folder was asked for in this run (on every rank)
 
     def setup(self, trainer: L.Trainer, pl_module: L.LightningModule, stage: str) -> None:
-        """Take a set ``dirpath`` that holds files, for ``fit``."""
+        """Take a set ``dirpath`` that holds files, for ``fit`` (rank 0 looks, every rank
+        follows its answer: a file made meanwhile by another run must not split the ranks)."""
         self._taken = False
         ckpt = trainer.checkpoint_callback
         folder = ckpt.dirpath if isinstance(ckpt, ModelCheckpoint) else None
-        if stage == "fit" and folder is not None and _holds_files(folder):
+        if stage != "fit" or folder is None:
+            return
+        full = _holds_files(folder) if trainer.is_global_zero else None
+        if trainer.strategy.broadcast(full, src=0):
             self._take(trainer, folder)
 
     def on_fit_start(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
