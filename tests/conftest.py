@@ -72,6 +72,17 @@ def with_file_size_limit(limit: int) -> Any:
     return limit_files
 
 
+def oserror_past_size_limit(code: str, path: Path, limit: int) -> list[str]:
+    """Run ``code`` (lines that write ``sys.argv[1]``, which is ``path``) in a new interpreter
+    whose files cannot grow past ``limit`` bytes (:func:`with_file_size_limit`); returns the
+    errno and file name of the ``OSError`` it raised (empty when it raised none)."""
+    body = "".join(f"    {line}\n" for line in code.splitlines())
+    script = f"import sys\ntry:\n{body}except OSError as e:\n    print(e.errno, e.filename)\n"
+    run = subprocess.run([sys.executable, "-c", script, str(path)], capture_output=True,
+                         text=True, preexec_fn=with_file_size_limit(limit), check=True)
+    return run.stdout.split()
+
+
 def random_parent(n: int, rng: random.Random, pop: float = 0.5) -> list[int]:
     """A random pre-order parent vector: ``pop=0`` gives a chain, ``pop=1`` a star."""
     parent, stack = [-1], [0]

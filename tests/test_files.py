@@ -155,18 +155,12 @@ def test_atomic_write_keeps_the_old_file_when_the_disk_is_full(tmp_path):
     full disk) raises an ``OSError`` naming the file, which keeps its old content, and leaves no
     temporary file."""
     import errno
-    import subprocess
-    import sys
 
-    from tests.conftest import with_file_size_limit
+    from tests.conftest import oserror_past_size_limit
 
     path = tmp_path / "blob.bin"
     files.atomic_write(path, b"old\x00")
     assert path.read_bytes() == b"old\x00"
-    code = ("import sys\nfrom robovae.files import atomic_write\n"
-            "try:\n    atomic_write(sys.argv[1], bytes(200_000))\n"
-            "except OSError as e:\n    print(e.errno, e.filename)\n")
-    run = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
-                         text=True, preexec_fn=with_file_size_limit(100_000), check=True)
-    assert run.stdout.split() == [str(errno.EFBIG), str(path)]
+    code = "from robovae.files import atomic_write\natomic_write(sys.argv[1], bytes(200_000))"
+    assert oserror_past_size_limit(code, path, 100_000) == [str(errno.EFBIG), str(path)]
     assert path.read_bytes() == b"old\x00" and [p.name for p in tmp_path.iterdir()] == [path.name]
