@@ -111,6 +111,20 @@ def test_node_noise_depends_on_seed_and_index_only(trained_nodes):
     assert not torch.equal(noise1[0], node_noise(4, 8, model.hparams.max_nodes, 6))
 
 
+def test_node_noise_at_temperature_zero_decodes_as_the_drawn_noise_scaled_by_zero(trained_nodes):
+    model = copy.deepcopy(trained_nodes[0]).to(torch.float64)
+    hp = model.hparams
+    z, noise = model.sample_prior(3, list(range(12)), node_temperature=0.0)
+    assert torch.equal(noise, torch.zeros_like(noise)) and not torch.signbit(noise).any()
+    # what the draw gave before: standard normals times 0, half of them -0.0
+    drawn = torch.stack([node_noise(3, i, hp.max_nodes, hp.node_latent_dim) for i in range(12)])
+    scaled = (drawn * 0.0).to(torch.float64)
+    assert torch.signbit(scaled).any()
+    for a, b in zip(model.decode(z, node_noise=noise), model.decode(z, node_noise=scaled)):
+        assert torch.equal(a.parent, b.parent) and torch.equal(a.node_type, b.node_type)
+        assert torch.equal(a.x, b.x) and torch.equal(torch.signbit(a.x), torch.signbit(b.x))
+
+
 def test_node_temperature_sets_the_node_noise_only(trained_nodes, tmp_path):
     _, _, ckpt = trained_nodes
     kw = dict(seed=2, validate=False, progress=False, jobs=1)
