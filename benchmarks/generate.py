@@ -17,8 +17,8 @@ processes once they have finished):
 - ``validate``: MuJoCo only, the written files, ``--jobs`` processes
   (:func:`robovae.generate.validate.validate_many`, ``--validation`` controls);
 - ``write + validate`` in ``--jobs`` spawned worker processes
-  (:func:`robovae.generate.build.build_robot`, no quality), less a separate run of the
-  workers' start-up;
+  (:func:`robovae.generate.build.build_robot` as generate's workers call it: scene, stance
+  rules, no quality), less a separate run of the workers' start-up;
 - with ``--ckpt``: ``generate()`` end to end (``quality=False``: decode in this process while
   the workers write and validate), then the same files validated alone.
 
@@ -204,8 +204,9 @@ def main() -> None:
     rows.append(_row(f"validate (MuJoCo only, {args.validation}), {args.jobs} processes",
                      args.n, c))
 
+    # as generate's workers build them: scene, validation, no quality, the stance rules
     items = [(g, root / "b" / f"robot_{i:06d}", fs, f"robot_{i:06d}", True, True, False,
-              args.validation) for i, g in enumerate(graphs)]
+              args.validation, True) for i, g in enumerate(graphs)]
     with _Clock(children=True) as start, worker_pool(args.jobs) as pool:
         list(pool.map(build_robot, items[:args.jobs]))
     with _Clock(children=True) as c, worker_pool(args.jobs) as pool:
