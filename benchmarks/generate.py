@@ -168,7 +168,7 @@ def main() -> None:
     p.add_argument("--ckpt", help="checkpoint (default: procedural robots, no model)")
     p.add_argument("--n", type=int, default=1000)
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--batch-size", type=int, default=256)
+    p.add_argument("--batch-size", type=int, default=1024)
     p.add_argument("--validation", choices=("held", "zero"), default="held")
     p.add_argument("--root", default=None, help="work folder (default: a temp folder)")
     p.add_argument("--phases", type=int, default=200,

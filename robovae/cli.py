@@ -257,7 +257,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the standing test; default) or zero controls")
     g.add_argument("--scene", action=argparse.BooleanOptionalAction, default=True,
                    help="also write scene.xml (floor + light + robot)")
-    g.add_argument("--batch-size", type=int, default=256, help="latents decoded at once")
+    g.add_argument("--batch-size", type=int, default=1024, help="latents decoded at once")
     g.add_argument("--jobs", type=int, default=0, help="validation processes (0: all cores)")
     g.add_argument("--floating-base", action=argparse.BooleanOptionalAction, default=True,
                    help="a robot whose root is a single joint gets a free joint (paper34 has "

@@ -79,7 +79,7 @@ def _finite(name: str, value: object, least: float = 0.0) -> None:
 
 
 def check_generate(n: object, temperature: object = 1.0, node_temperature: object = None,
-                   batch_size: object = 256, jobs: object = 0, redraws: object = 4,
+                   batch_size: object = 1024, jobs: object = 0, redraws: object = 4,
                    seed: object = 0) -> None:
     """``robovae generate``: ``n`` and ``batch_size`` positive integers, ``jobs`` and
     ``redraws`` integers ``>= 0``, the temperatures finite and ``>= 0`` (``node_temperature``
