@@ -135,11 +135,31 @@ def test_contact_sheets_one_png_per_population(tmp_path) -> None:
 def test_written_files_are_robots_as_generate_writes_them(tmp_path) -> None:
     files = written_files(3, tmp_path, zoo=False)
     assert [f.parent.name for f in files] == ["robot_000000", "robot_000001", "robot_000002"]
+    assert {f.parent.parent.name for f in files} == {"procedural"}
     again = written_files(3, tmp_path, zoo=False)  # reused, not written again
     assert again == files and all(f.stat().st_mtime_ns == g.stat().st_mtime_ns
                                   for f, g in zip(files, again))
     rows = [robot_quality(f) for f in files]
     assert all("error" not in r and r["floating"] for r in rows)
+
+
+def test_written_files_are_the_same_robots_whatever_n_asked_and_the_writer_is_part_of_the_cache(
+        tmp_path, monkeypatch) -> None:
+    """A file of the cache is one robot: procedural robot i whether 2 or 3 were asked (robot 2
+    was once the first zoo robot, written when 2 procedural robots came first), and a cache of
+    another writer is not reused."""
+    import robovae.generate.writer as writer
+
+    with_zoo = written_files(2, tmp_path)
+    assert [f.parent.parent.name for f in with_zoo] == ["procedural"] * 2 + ["zoo"] * (
+        len(with_zoo) - 2) and len(with_zoo) > 2
+    three = written_files(3, tmp_path, zoo=False)
+    assert three[:2] == with_zoo[:2] and three[2] not in with_zoo
+    fresh = written_files(3, tmp_path / "fresh", zoo=False)
+    assert three[2].read_text() == fresh[2].read_text()
+    monkeypatch.setattr(writer, "WRITER", writer.WRITER + ", something else")
+    other = written_files(3, tmp_path, zoo=False)
+    assert other[0].parents[2] != three[0].parents[2] and other[0].is_file()
 
 
 def test_corpus_files_rebuild_procedural_training_robots(tmp_path):

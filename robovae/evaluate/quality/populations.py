@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -81,29 +82,33 @@ def corpus_files(sources: Sequence[str | None], names: Sequence[str], n: int,
 
 def written_files(n: int, root: str | os.PathLike = "data_cache", seed: int = 0,
                   zoo: bool = True) -> list[Path]:
-    """``root/raw/quality_written_s<seed>/robot_<i>/robot.xml``: the ``paper34`` graphs of
-    ``n`` procedural robots (seeds ``seed …``, :func:`~robovae.data.procedural.procedural_graphs`)
-    and, with ``zoo``, of the installed zoo robots, each given ``robovae generate``'s fixes of a
-    decoded graph (:func:`~robovae.generate.fixes.decoded_fixes`: a floating base, near-mirror
-    limbs mirrored, near-equal limbs on the plane made equal, slides limited) and written by
-    :func:`~robovae.generate.writer.write_robot`, as ``robovae generate`` does (written on first
-    use, reused after)."""
+    """The ``paper34`` graphs of ``n`` procedural robots (seeds ``seed …``,
+    :func:`~robovae.data.procedural.procedural_graphs`) and, with ``zoo``, of the installed zoo
+    robots, each given ``robovae generate``'s fixes of a decoded graph
+    (:func:`~robovae.generate.fixes.decoded_fixes`: a floating base, near-mirror limbs
+    mirrored, near-equal limbs on the plane made equal, slides limited) and written by
+    :func:`~robovae.generate.writer.write_robot`, as ``robovae generate`` does: procedural robot
+    ``i`` in ``procedural/robot_<i>/robot.xml``, a zoo robot in ``zoo/<name>/robot.xml``, both
+    under ``root/raw/quality_written_<writer>_s<seed>`` (``<writer>``: a digest of
+    :data:`~robovae.generate.writer.WRITER`). Written on first use and reused after: a file is
+    the same robot whatever ``n`` asked for it, and files of another writer are not reused."""
     from robovae.data.loading import load_robot
     from robovae.data.mjcf import model_to_graph
     from robovae.data.zoo import zoo_files
     from robovae.generate.fixes import decoded_fixes
-    from robovae.generate.writer import write_robot
+    from robovae.generate.writer import WRITER, write_robot
 
-    out = Path(root) / "raw" / f"quality_written_s{seed}"
-    graphs = procedural_graphs(parse_procedural(f"n={n},seed={seed}"), jobs=1) if n > 0 else []
+    writer = hashlib.sha256(WRITER.encode()).hexdigest()[:12]
+    out = Path(root) / "raw" / f"quality_written_{writer}_s{seed}"
+    robots = [(out / "procedural" / f"robot_{i:06d}", g) for i, g in
+              enumerate(procedural_graphs(parse_procedural(f"n={n},seed={seed}"), jobs=1)
+                        if n > 0 else [])]
     if zoo:
-        graphs += [model_to_graph(load_robot(f).model, "paper34") for _, f in zoo_files()[0]]
-    paths = []
-    for i, g in enumerate(graphs):
-        folder = out / f"robot_{i:06d}"
+        robots += [(out / "zoo" / name, model_to_graph(load_robot(f).model, "paper34"))
+                   for name, f in zoo_files()[0]]
+    for folder, g in robots:
         if not (folder / "robot.xml").is_file():
             tree, _ = decoded_fixes(g, "paper34")
-            write_robot(tree, folder, "paper34", name=f"written_{i:06d}", scene=False, check=False,
-                        durable=False)
-        paths.append(folder / "robot.xml")
-    return paths
+            write_robot(tree, folder, "paper34", name=f"written_{folder.name}", scene=False,
+                        check=False, durable=False)
+    return [folder / "robot.xml" for folder, _ in robots]
