@@ -92,7 +92,8 @@ def cmd_generate(args: argparse.Namespace) -> int:
                       overwrite=args.overwrite, floating=args.floating_base,
                       mirror=args.mirror_limbs, node_temperature=args.node_temperature,
                       quality=args.quality, controls=args.validation, redraws=args.redraws,
-                      prior=args.prior, stance=args.stance)
+                      prior=args.prior, stance=args.stance,
+                      self_collision=args.self_collision)
     print(report.format())
     print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
     return 0
@@ -274,6 +275,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "ends, ankle motors strong enough for its soles and a home keyframe with its "
                    "centre of mass over them (ground_wheels, level_soles, level_stilts, "
                    "strong_ankles, balance_home)")
+    g.add_argument("--self-collision", action="store_true",
+                   help="the robot's bodies collide with each other (legs with the trunk and "
+                   "each other), but for the pairs in contact at rest (self_collision_excludes)")
     g.add_argument("--quality", action=argparse.BooleanOptionalAction, default=True,
                    help="measure every valid robot: attached, symmetric, standing (the "
                    "standing test continues the validation's held second)")

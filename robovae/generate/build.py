@@ -26,9 +26,11 @@ def warm_up() -> None:
 
 def build_robot(item: tuple) -> dict:
     """Write one robot folder, validate it and measure its quality: ``item`` is ``(graph,
-    folder, feature_set, name, scene, validate, quality[, controls[, stance]])`` (``controls``:
-    the validation's simulation, ``"held"`` by default, see :mod:`robovae.generate.validate`;
-    ``stance``: the writer's stance rules, :mod:`robovae.generate.stance`, off by default).
+    folder, feature_set, name, scene, validate, quality[, controls[, stance[,
+    self_collision]]])`` (``controls``: the validation's simulation, ``"held"`` by default, see
+    :mod:`robovae.generate.validate`; ``stance``: the writer's stance rules,
+    :mod:`robovae.generate.stance`, off by default; ``self_collision``: the robot's bodies
+    collide with each other, :mod:`robovae.data.self_collision`, off by default).
     Returns the robot's part of its manifest record (``rules``, ``counts``, ``valid``,
     ``reason``, ``detail``, ``quality``); a graph the writer cannot write is a ``compile``
     failure, never an exception.
@@ -40,10 +42,12 @@ def build_robot(item: tuple) -> dict:
     graph, folder, feature_set, name, scene, validate, quality = item[:7]
     controls = item[7] if len(item) > 7 else "held"
     stance = bool(item[8]) if len(item) > 8 else False
+    self_collision = bool(item[9]) if len(item) > 9 else False
     try:
         # the validator loads the file anyway; the caller syncs a batch's files at once
         res = write_robot(graph, folder, feature_set, name=name, scene=scene,
-                          check=not validate, durable=False, stance=stance)
+                          check=not validate, durable=False, stance=stance,
+                          self_collision=self_collision)
     except Exception as e:  # the rules make every graph writable; never lose a whole batch
         return {"rules": [], "counts": {}, "valid": False, "reason": "compile",
                 "detail": f"writer error: {' '.join(str(e).split())}"}

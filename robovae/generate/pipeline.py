@@ -225,6 +225,7 @@ def generate(
     redraws: int = 4,
     prior: str | None = None,
     stance: bool = True,
+    self_collision: bool = False,
 ) -> GenerationReport:
     """Generate ``n`` robots into ``out`` (resumable; see the module docstring).
 
@@ -255,9 +256,11 @@ def generate(
     laid flat, and a two-footed robot gets ankles strong enough for its soles and a balanced
     ``home`` keyframe (:mod:`robovae.generate.stance` and :mod:`robovae.generate.bipeds`;
     rules ``ground_wheels``, ``level_soles``, ``level_stilts``, ``strong_ankles``,
-    ``balance_home``). ``batch_size``: latents decoded at once, and the robots per manifest
-    flush (1024: the decoder's steps are shared by more robots, 2.5 against 4.4 ms of CPU a
-    robot at 256, no faster beyond; docs/generation.md).
+    ``balance_home``). ``self_collision``: the robot's bodies collide with each other, but for
+    the pairs in contact at rest (:mod:`robovae.data.self_collision`; rule
+    ``self_collision_excludes``). ``batch_size``: latents decoded at once, and the robots per
+    manifest flush (1024: the decoder's steps are shared by more robots, 2.5 against 4.4 ms of
+    CPU a robot at 256, no faster beyond; docs/generation.md).
     """
     if prior is not None and prior not in PRIORS:
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")
@@ -275,6 +278,8 @@ def generate(
            "prior": prior_name(model), "stance": stance, "writer": WRITER}
     if validate and controls != "zero":  # folders validated with zero controls resume
         run["validation"] = controls
+    if self_collision:  # folders of robots that do not collide with themselves resume
+        run["self_collision"] = True
     with FolderLock(out, "robots"):  # a second run into out is refused while this one writes
         claim(out, run, overwrite)
         # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and
@@ -290,7 +295,7 @@ def generate(
         threads = torch.get_num_threads()
         prepare = partial(prepare_records, seed=seed, temperature=temperature, validate=validate,
                           scene=scene, floating=floating, mirror=mirror, quality=quality,
-                          controls=controls, stance=stance)
+                          controls=controls, stance=stance, self_collision=self_collision)
         try:
             if jobs > 1:
                 torch.set_num_threads(1)  # the workers have the other cores
@@ -341,12 +346,15 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                     temperature: float = 1.0, validate: bool = True, scene: bool = True,
                     floating: bool = True, mirror: bool = True, quality: bool = True,
                     controls: str = "held", draws: Sequence[int] | None = None,
-                    stance: bool = True) -> tuple[list[dict], list[tuple]]:
+                    stance: bool = True, self_collision: bool = False
+                    ) -> tuple[list[dict], list[tuple]]:
     """The first half of :func:`write_records`, in this process: each decoded robot's graph
     given a floating base and mirrored limbs (as asked), its manifest record so far and the
     work item of :func:`~robovae.generate.build.build_robot` (write, validate, measure).
     ``draws``: per robot, the prior draw kept (:func:`~robovae.model.prior.draw_robots`).
-    ``stance``: the writer's stance rules (:mod:`robovae.generate.stance`)."""
+    ``stance``: the writer's stance rules (:mod:`robovae.generate.stance`);
+    ``self_collision``: bodies that collide with each other
+    (:mod:`robovae.data.self_collision`)."""
     records, items = [], []
     fs = model.feature_set
     draws = [0] * len(graphs) if draws is None else draws
@@ -360,7 +368,7 @@ def prepare_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                    path=f"robot_{i:06d}/robot.xml")
         records.append(rec)
         items.append((TreeArrays.of(g), out / f"robot_{i:06d}", fs.name, name, scene, validate,
-                      quality, controls, stance))
+                      quality, controls, stance, self_collision))
     return records, items
 
 
@@ -379,7 +387,8 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
                   scene: bool = True, floating: bool = True,
                   pool: Executor | None = None, mirror: bool = True,
                   quality: bool = True, controls: str = "held",
-                  draws: Sequence[int] | None = None, stance: bool = True) -> list[dict]:
+                  draws: Sequence[int] | None = None, stance: bool = True,
+                  self_collision: bool = False) -> list[dict]:
     """Write the folders of decoded robots ``graphs`` (latents ``z``, indices ``indices``) and
     validate them. Returns one manifest record per robot (the caller appends them).
 
@@ -393,12 +402,14 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     ``quality`` (and ``validate``), every valid robot's quality measures go into its record
     under ``quality``; ``controls``: the validation's simulation
     (:mod:`robovae.generate.validate`); ``stance``: the writer's stance rules
-    (:mod:`robovae.generate.stance`).
+    (:mod:`robovae.generate.stance`); ``self_collision``: bodies that collide with each other
+    (:mod:`robovae.data.self_collision`).
     """
     records, items = prepare_records(model, indices, z, graphs, out, seed=seed,
                                      temperature=temperature, validate=validate, scene=scene,
                                      floating=floating, mirror=mirror, quality=quality,
-                                     controls=controls, draws=draws, stance=stance)
+                                     controls=controls, draws=draws, stance=stance,
+                                     self_collision=self_collision)
     jobs = jobs or (os.cpu_count() or 1)
     if pool is not None:
         built = list(pool.map(build_robot, items, chunksize=4))

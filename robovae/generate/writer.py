@@ -46,6 +46,7 @@ import numpy as np
 
 from robovae.data.features import FeatureSet
 from robovae.data.loading import capture_mujoco_warnings, robot_root
+from robovae.data.self_collision import exclude_resting_contacts
 from robovae.data.tree_arrays import RobotTree
 from robovae.files import atomic_write
 from robovae.generate.bipeds import balance_home, foot_soles, strong_ankles, two_legs
@@ -188,6 +189,8 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
             fired.append("strong_ankles")
         if balance_home(spec, model, root, lift=dz, data=kin, legs=legs):
             fired.append("balance_home")
+    if self_collision and exclude_resting_contacts(spec):  # the final spec: its keyframe too
+        fired.append("self_collision_excludes")
     return spec, model, fired
 
 
@@ -214,7 +217,9 @@ def graph_to_spec(
         actuators: ``auto``, ``all`` or ``none`` (:mod:`robovae.generate.spec_builder`).
         clearance: lift free-floating robots so their lowest point is this high above
             ``z = 0``; ``None`` keeps the root link's position.
-        self_collision: let the robot's geoms collide with each other (``conaffinity = 1``).
+        self_collision: let the robot's geoms collide with each other (``conaffinity = 1``);
+            the body pairs in contact at rest are excluded from colliding
+            (:mod:`robovae.data.self_collision`, reported as ``self_collision_excludes``).
         stance: a free-floating robot gets its hanging wheels lowered onto the floor, its soles
             laid flat and, standing on two feet, its stilts stood on their ends, soles under
             point feet, ankles strong enough for its soles and a balanced ``home`` keyframe

@@ -293,6 +293,33 @@ def test_unfinished_trees_are_redrawn_and_reported(trained, tmp_path):
     assert json.loads((tmp_path / "some" / RUN).read_text())["redraws"] == 3
 
 
+def test_cli_generate_self_collision(trained, tmp_path, capsys):
+    """--self-collision: every robot geom collides with the others, the run says so, and a
+    folder of robots that do not collide with themselves is not continued with it."""
+    import mujoco
+
+    _, _, ckpt = trained
+    out, plain = tmp_path / "sc", tmp_path / "plain"
+
+    def args(folder):
+        return ["generate", "--ckpt", str(ckpt), "-n", "3", "--out", str(folder), "--jobs", "1",
+                "--no-quality"]
+
+    assert main([*args(out), "--self-collision"]) == 0
+    assert json.loads((out / RUN).read_text())["self_collision"] is True
+    records = read_manifest(out).values()
+    assert any(r["valid"] for r in records)  # the tiny model also decodes rigid bodies
+    for rec in records:
+        assert rec["reason"] != "self_penetration", rec
+        model = mujoco.MjModel.from_xml_path(str(out / rec["path"]))
+        assert (model.geom_conaffinity[model.geom_bodyid != 0] == 1).all()
+    assert main(args(plain)) == 0
+    assert "self_collision" not in json.loads((plain / RUN).read_text())
+    capsys.readouterr()
+    assert main([*args(plain), "--self-collision"]) == 2
+    assert "self_collision differ" in capsys.readouterr().err
+
+
 def test_cli_generate_unwritable_out_is_one_line(trained, tmp_path, capsys):
     """An --out below a file cannot be created (chmod does not stop root: a file as parent)."""
     _, _, ckpt = trained

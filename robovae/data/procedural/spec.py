@@ -7,8 +7,9 @@ armature, stiffness) and geoms (explicit masses). Every joint with a gear gets a
 (``ctrlrange [-1, 1]``, ``gear``: the torque limit, N·m or N) when ``plan.actuators``; a
 hinge without range (a wheel) a DC motor with a no-load speed
 (:func:`robovae.data.actuators.speed_limited`). Geoms
-collide with a floor but not with each other unless ``plan.self_collision``. No floor, light
-or camera is added.
+collide with a floor but not with each other unless ``plan.self_collision``; then the body pairs
+in contact at rest are excluded from colliding (:mod:`robovae.data.self_collision`). No floor,
+light or camera is added.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import mujoco
 
 from robovae.data.actuators import speed_limited
 from robovae.data.procedural.blueprint import Part, RobotPlan
+from robovae.data.self_collision import exclude_resting_contacts
 
 _GEOM = {"capsule": mujoco.mjtGeom.mjGEOM_CAPSULE, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
          "sphere": mujoco.mjtGeom.mjGEOM_SPHERE, "box": mujoco.mjtGeom.mjGEOM_BOX}
@@ -71,4 +73,6 @@ def build_spec(plan: RobotPlan) -> mujoco.MjSpec:
         body = parent.add_body(name=part.name, pos=list(part.pos))
         _fill(spec, body, part, conaff, plan.actuators)
         stack.extend((body, c) for c in reversed(part.children))
+    if plan.self_collision:
+        exclude_resting_contacts(spec)
     return spec
