@@ -128,7 +128,8 @@ def cmd_optimize(args: argparse.Namespace) -> int:
 
     res = optimize(args.ckpt, args.task, args.budget, args.out, seed=args.seed, jobs=args.jobs,
                    top=args.top, variance=args.variance, population=args.population,
-                   score_sets=args.score_sets, **{k: v for k, v in (
+                   score_sets=args.score_sets, self_collision=args.self_collision,
+                   **{k: v for k, v in (
                        ("restart_after", args.restart_after), ("local_step", args.local_step),
                        ("distinct", args.distinct)) if v is not None})
     held = "held-out median"  # the best robot re-scored with score seeds 1-8
@@ -341,6 +342,9 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--distinct", type=float, default=None,
                    help="least distance between two latent designs among the --top best robots, "
                         "in the whitened prior's units (0: near copies allowed); default 1")
+    o.add_argument("--self-collision", action="store_true",
+                   help="every robot's bodies collide with each other, but for the pairs in "
+                   "contact at rest (legs cannot pass through the trunk or each other)")
     o.add_argument("--jobs", type=int, default=0, help="scoring processes (0: all cores)")
     o.set_defaults(func=cmd_optimize)
     t = sub.add_parser("gait", help="tune an open-loop gait to each robot's body (the walk "

@@ -23,7 +23,11 @@ import numpy as np
 from robovae.data.tree_arrays import TreeArrays
 from robovae.design.score import score_robot
 
-__all__ = ["evaluate", "failed", "scored"]
+__all__ = ["Candidate", "evaluate", "failed", "scored"]
+
+#: A worker's candidate: ``(robot, folder, feature_set, task, seeds[, self_collision])``.
+Candidate = (tuple[TreeArrays | str, str, str, str, Sequence[int]]
+             | tuple[TreeArrays | str, str, str, str, Sequence[int], bool])
 
 
 def failed(error: Exception) -> dict:
@@ -44,14 +48,16 @@ def scored(path: Path, task: str, seeds: Sequence[int]) -> dict:
     return res
 
 
-def evaluate(item: tuple[TreeArrays | str, str, str, str, Sequence[int]]) -> dict:
+def evaluate(item: Candidate) -> dict:
     """Write one candidate into a scratch folder, score it, delete the folder (worker).
 
-    ``item`` is ``(robot, folder, feature_set, task, seeds)``: ``robot`` the prepared graph
-    (:class:`TreeArrays`, written by :func:`robovae.generate.writer.write_robot`) or MJCF text
-    (written as it is). Returns :func:`scored`'s record; a candidate that cannot be written
-    scores 0 (:func:`failed`)."""
-    robot, folder_name, fs_name, task, seeds = item
+    ``item`` is ``(robot, folder, feature_set, task, seeds[, self_collision])``: ``robot`` the
+    prepared graph (:class:`TreeArrays`, written by :func:`robovae.generate.writer.write_robot`,
+    its bodies colliding with each other with ``self_collision``) or MJCF text (written as it
+    is). Returns :func:`scored`'s record; a candidate that cannot be written scores 0
+    (:func:`failed`)."""
+    robot, folder_name, fs_name, task, seeds = item[:5]
+    self_collision = bool(item[5]) if len(item) > 5 else False
     from robovae.generate.writer import write_robot
 
     folder = Path(folder_name)
@@ -60,7 +66,8 @@ def evaluate(item: tuple[TreeArrays | str, str, str, str, Sequence[int]]) -> dic
             folder.mkdir(parents=True, exist_ok=True)
             (folder / "robot.xml").write_text(robot)
         else:
-            write_robot(robot, folder, fs_name, name=folder.name, scene=False, stance=True)
+            write_robot(robot, folder, fs_name, name=folder.name, scene=False, stance=True,
+                        self_collision=self_collision)
         res = scored(folder / "robot.xml", task, seeds)
         if res.get("error"):  # the scratch file is gone: name the candidate, not the file
             res["error"] = res["error"].replace(f"{folder / 'robot.xml'}: ", "")

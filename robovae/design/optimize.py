@@ -34,7 +34,8 @@ and a budget of ``N`` evaluations per method, three methods run side by side in 
 Latent candidates are decoded from ``z`` alone (greedy; with node latents, every node's latent
 at its conditional prior mean), written as ``robovae generate`` writes a robot
 (:data:`WRITER`: for walk and stand a root joint becomes a floating base, for reach the base
-stays fixed; mirrored limbs; the writer's stance rules), and scored by
+stays fixed; mirrored limbs; the writer's stance rules; with ``self_collision`` bodies that
+collide with each other, as the procedural baseline robots then do too), and scored by
 :func:`robovae.design.score.score_robot` with the run's score seeds (:func:`score_seeds`: seed
 0, and with ``score_sets = K > 1`` seeds 9 … K + 7 too; every robot gets the same gait
 searches): the score is the median of the ``K`` scores (for walk, the median over ``K`` sets of
@@ -96,6 +97,7 @@ from robovae.design.results import (
     heldout,
     heldout_todo,
     plot,
+    procedural_config,
     write_best,
 )
 from robovae.design.score import SCORE_VERSION
@@ -153,12 +155,14 @@ class _Run:
     def __init__(self, model: RoboVAE, task: str, budget: int, out: Path, seed: int,
                  jobs: int, top: int, variance: float, population: int | None = None,
                  score_sets: int = 1, restart_after: int = RESTART_AFTER,
-                 local_step: float = LOCAL_SIGMA, distinct: float = DISTINCT) -> None:
+                 local_step: float = LOCAL_SIGMA, distinct: float = DISTINCT,
+                 self_collision: bool = False) -> None:
         from cmaes import CMA
 
         self.model, self.task, self.budget, self.out = model, task, budget, out
         self.seed, self.jobs, self.top, self.distinct = seed, jobs, top, distinct
         self.restart_after, self.local_step = restart_after, local_step
+        self.self_collision = self_collision
         self.seeds = score_seeds(score_sets)
         self.dim = int(model.hparams.latent_dim)
         self.floating = task != "reach"
@@ -179,6 +183,8 @@ class _Run:
                          "cma_restarts": f"after {restart_after} generations, local (step "
                                          f"{local_step:g} from the best) and IPOP alternately",
                          "writer": WRITER}
+        if self_collision:  # logs of robots that do not collide with themselves continue
+            self.settings["self_collision"] = True
         # logs written before the population was a setting ran the cmaes default
         self._default_population = CMA(mean=np.zeros(k), sigma=1.0).population_size
         self.log: dict[str, Any] = {"settings": self.settings, "budget": budget,
@@ -238,7 +244,8 @@ class _Run:
         if "score_seed" in settings:  # logs before score sets: one seed
             settings["score_seeds"] = [settings.pop("score_seed")]
         if settings != self.settings:
-            diff = ", ".join(k for k in self.settings if settings.get(k) != self.settings[k])
+            keys = list(self.settings) + [k for k in settings if k not in self.settings]
+            diff = ", ".join(k for k in keys if settings.get(k) != self.settings.get(k))
             raise RobovaeError(f"robovae: {path}: log of another run ({diff} differ); use "
                                "another --out")
         self.log["evaluations"] = old["evaluations"]  # written back with the new settings
@@ -306,7 +313,7 @@ class _Run:
             if method == "procedural":
                 from robovae.data.procedural import procedural_spec
 
-                return procedural_spec(payload).to_xml()
+                return procedural_spec(payload, config=procedural_config(self)).to_xml()
             from robovae.generate.fixes import decoded_fixes
 
             assert not isinstance(payload, int)  # a latent method's decoded graph
@@ -355,7 +362,7 @@ class _Run:
                     done[k] = robot
                 else:
                     items[k] = (robot, str(work / f"{m}_{i:06d}"), self.model.feature_set.name,
-                                self.task, self.seeds)
+                                self.task, self.seeds, self.self_collision)
         todo = list(items.values())
         done.update(zip(items, pool.map(evaluate, todo) if pool else map(evaluate, todo)))
         for k, (m, i, p) in enumerate(jobs):
@@ -383,7 +390,8 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
              seed: int = 0, jobs: int = 0, top: int = 10, progress: bool = True,
              variance: float = 0.9, population: int | None = None,
              score_sets: int = 1, restart_after: int = RESTART_AFTER,
-             local_step: float = LOCAL_SIGMA, distinct: float = DISTINCT) -> dict:
+             local_step: float = LOCAL_SIGMA, distinct: float = DISTINCT,
+             self_collision: bool = False) -> dict:
     """Run (or continue) an optimisation (module docstring). ``population``: CMA-ES candidates
     per generation (None: ``4 + floor(3 ln k)``); each round scores as many baseline robots.
     ``score_sets``: score seeds per robot (:func:`score_seeds`), each evaluation then costs
@@ -392,6 +400,9 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
     prior units); both are settings of the run (module docstring). ``distinct``: the least
     distance between two latent designs among a method's ``top`` best robots (whitened prior
     units; 0: the plain top), a choice of what to write, not of the search.
+    ``self_collision``: every robot of every method is written with bodies that collide with
+    each other, but for the pairs in contact at rest (:mod:`robovae.data.self_collision`), a
+    setting of the run.
 
     Returns:
         per method ``evaluations``, ``best`` score, ``best_index``, ``heldout`` (the best
@@ -417,7 +428,7 @@ def optimize(ckpt: str | os.PathLike | RoboVAE, task: str, budget: int, out: str
         raise RobovaeError(f"robovae: {out}: exists and is not a folder")
     model = own_model(ckpt)  # decoded in float64: never the caller's object
     run = _Run(model.to(torch.float64), task, budget, out, seed, jobs, top, variance, population,
-               score_sets, restart_after, local_step, distinct)
+               score_sets, restart_after, local_step, distinct, self_collision)
     # one run at a time: a second would rewrite log.json under this one and delete its .work
     with FolderLock(out, "the run's files"):
         run.load()

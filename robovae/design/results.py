@@ -36,10 +36,11 @@ import numpy as np
 from robovae.design.score import GAIT_TASKS, Wheeled, score_robot, walk_gait
 
 if TYPE_CHECKING:  # the model stack stays out of the worker processes that import this module
+    from robovae.data.procedural.robots import ProceduralConfig
     from robovae.model.vae import RoboVAE
 
 __all__ = ["HELDOUT_SEEDS", "METHODS", "best_so_far", "gait_seed", "heldout", "heldout_todo",
-           "plot", "search_point", "top_records", "write_best"]
+           "plot", "procedural_config", "search_point", "top_records", "write_best"]
 
 METHODS = ("cma", "prior", "procedural")
 #: Score seeds of the held-out re-scoring of each method's best robots (module docstring).
@@ -60,6 +61,7 @@ class Run(Protocol):
     floating: bool
     seeds: list[int]
     model: RoboVAE
+    self_collision: bool
 
     def decode(self, zs: list[np.ndarray]) -> list:
         """The graphs decoded from latents ``zs`` as the run decodes its candidates."""
@@ -198,6 +200,14 @@ def heldout(run: Run, pool: Executor | None) -> dict:
     return out
 
 
+def procedural_config(run: Run) -> ProceduralConfig | None:
+    """The procedural generator's settings of the run's baseline robots: its defaults
+    (None), or with bodies that collide with each other when the run has ``self_collision``."""
+    from robovae.data.procedural.robots import ProceduralConfig
+
+    return ProceduralConfig(self_collision=True) if run.self_collision else None
+
+
 def write_best(run: Run) -> dict:
     """Rewrite ``best/<method>/rank_<k>/`` from the log; returns the summary per method."""
     from robovae.data.procedural import procedural_spec
@@ -215,12 +225,14 @@ def write_best(run: Run) -> dict:
             folder = tmp / m / f"rank_{k}"
             if m == "procedural":
                 folder.mkdir(parents=True)
-                (folder / "robot.xml").write_text(procedural_spec(rec["seed"]).to_xml())
+                (folder / "robot.xml").write_text(
+                    procedural_spec(rec["seed"], config=procedural_config(run)).to_xml())
                 (folder / "scene.xml").write_text(scene_xml("robot.xml", f"{m}_{k}_scene"))
             else:
                 g = run.decode([np.array(rec["z"])])[0]
                 g = decoded_fixes(g, run.model.feature_set, floating=run.floating)[0]
-                write_robot(g, folder, run.model.feature_set, name=f"{m}_rank{k}", stance=True)
+                write_robot(g, folder, run.model.feature_set, name=f"{m}_rank{k}", stance=True,
+                            self_collision=run.self_collision)
     shutil.rmtree(run.out / "best", ignore_errors=True)
     os.replace(tmp, run.out / "best")
     return summary

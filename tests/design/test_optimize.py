@@ -592,3 +592,30 @@ def test_top_records_are_distinct_designs():
     assert [r["index"] for r in top_records(run, "cma")] == [0, 2, 3]
     run.distinct, run.top = 0.0, 4
     assert [r["index"] for r in top_records(run, "cma")] == [0, 1, 2, 3]
+
+
+def test_optimize_self_collision_is_a_setting_of_the_run(trained_nodes, tmp_path, capsys):
+    """--self-collision: every method's robots collide with themselves (the written best ones
+    too), the log says so, and a log of the other kind is not continued either way."""
+    import mujoco
+
+    _, _, ckpt = trained_nodes
+    out, plain = tmp_path / "sc", tmp_path / "plain"
+    argv = ["optimize", "--ckpt", str(ckpt), "--task", "stand", "--budget", "2", "--top", "1",
+            "--seed", "2", "--variance", "0.5", "--jobs", "1"]
+    assert main([*argv, "--out", str(out), "--self-collision"]) == 0
+    log = json.loads((out / "log.json").read_text())
+    assert log["settings"]["self_collision"] is True
+    for m in METHODS:
+        model = mujoco.MjModel.from_xml_path(str(out / "best" / m / "rank_0" / "robot.xml"))
+        assert (model.geom_conaffinity[model.geom_bodyid != 0] == 1).all(), m
+    del log["settings"]["self_collision"]  # the log of the same run without self-collision
+    plain.mkdir()
+    (plain / "log.json").write_text(json.dumps(log))
+    capsys.readouterr()
+    for folder, extra in ((out, []), (plain, ["--self-collision"])):
+        before = (folder / "log.json").read_text()
+        assert main([*argv, "--out", str(folder), *extra]) == 2
+        err = capsys.readouterr().err
+        assert "log of another run (self_collision differ)" in err and err.count("\n") == 1
+        assert (folder / "log.json").read_text() == before
