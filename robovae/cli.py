@@ -78,7 +78,8 @@ def cmd_generate(args: argparse.Namespace) -> int:
         report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
                                seed=args.seed, validate=args.validate, jobs=args.jobs,
                                scene=args.scene, overwrite=args.overwrite,
-                               floating=args.floating_base, redraws=args.redraws)
+                               floating=args.floating_base, redraws=args.redraws,
+                               self_collision=args.self_collision)
         print(report.format())
         print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")
         return 0

@@ -133,9 +133,12 @@ LIKE_BATCH = 256
 def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius: float, n: int,
                   out: str | os.PathLike, seed: int = 0, validate: bool = True, jobs: int = 0,
                   scene: bool = True, overwrite: bool = False, floating: bool = True,
-                  variance: float = LIKE_VARIANCE, redraws: int = 4) -> GenerationReport:
+                  variance: float = LIKE_VARIANCE, redraws: int = 4,
+                  self_collision: bool = False) -> GenerationReport:
     """Write ``n`` variations of ``robot`` within ``radius`` prior standard deviations in the
-    prior's principal subspace holding ``variance`` of its variance (module docstring).
+    prior's principal subspace holding ``variance`` of its variance (module docstring);
+    ``self_collision``: their bodies collide with each other, as with ``robovae generate``
+    (:mod:`robovae.data.self_collision`).
 
     Raises:
         RobovaeError: ``radius < 0``, ``n < 1``, ``redraws`` or ``jobs`` negative,
@@ -150,11 +153,13 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     encoded = encode_file(model, robot)  # refuses a bad file before anything is written
     out = Path(out)
     digest = hashlib.sha256(Path(robot).read_bytes()).hexdigest()
+    run = {"model": model_fingerprint(model), "like": digest, "radius": radius,
+           "radius_space": f"prior standard deviations, principal subspace {variance:g}",
+           "seed": seed, "redraws": redraws, "floating": floating, "writer": WRITER}
+    if self_collision:  # as robovae generate: folders without it resume
+        run["self_collision"] = True
     with FolderLock(out, "robots"):  # as robovae generate: one run writes there at a time
-        claim(out, {"model": model_fingerprint(model), "like": digest, "radius": radius,
-                    "radius_space": f"prior standard deviations, principal subspace {variance:g}",
-                    "seed": seed, "redraws": redraws, "floating": floating, "writer": WRITER},
-              overwrite)
+        claim(out, run, overwrite)
         model = model.to(torch.float64)  # as robovae generate: a robot never depends on its batch
         encoded = encoded._replace(mu=encoded.mu.double(), nodes=encoded.nodes.double())
         basis = model.prior_directions(variance)[1]
@@ -163,7 +168,8 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
         with worker_pool(jobs, warm=True) if jobs > 1 and len(todo) >= 4 else nullcontext() as pool:
             for k in range(0, len(todo), LIKE_BATCH):
                 _like_batch(model, todo[k:k + LIKE_BATCH], encoded, basis, robot, radius, out,
-                            seed, redraws, validate, jobs, scene, floating, pool)
+                            seed, redraws, validate, jobs, scene, floating, pool,
+                            self_collision)
         reference = reconstruction_record(model, encoded, floating)
         spread = prior_spread(model, variance)
         return summarize(model, out, n, len(todo), validate, time.perf_counter() - start,
@@ -238,11 +244,12 @@ def like_metrics(records: list[dict], reference: dict, radius: float, spread: fl
 def _like_batch(model: RoboVAE, chunk: list[int], encoded: EncodedRobot, basis: np.ndarray,
                 robot: str | os.PathLike, radius: float, out: Path, seed: int, redraws: int,
                 validate: bool, jobs: int, scene: bool, floating: bool,
-                pool: Executor | None) -> None:
+                pool: Executor | None, self_collision: bool = False) -> None:
     """Decode, write and log variations ``chunk`` (:func:`generate_like`)."""
     z, graphs, draws = draw_variations(model, encoded, basis, radius, seed, chunk, redraws)
     records = write_records(model, chunk, z, graphs, out, seed=seed, validate=validate,
-                            jobs=jobs, scene=scene, floating=floating, pool=pool, draws=draws)
+                            jobs=jobs, scene=scene, floating=floating, pool=pool, draws=draws,
+                            self_collision=self_collision)
     for rec in records:
         rec.pop("temperature", None)
         rec.update(like=str(robot), radius=radius)

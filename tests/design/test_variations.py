@@ -66,6 +66,22 @@ def test_like_writes_variations_within_radius(trained_nodes, files, tmp_path, ca
     assert (out / "robot_000004" / "robot.xml").is_file()
 
 
+def test_like_with_self_collision(trained_nodes, files, tmp_path, capsys):
+    """generate --like --self-collision: the variations collide with themselves (it was
+    ignored: the flag of robovae generate did not reach the variations)."""
+    import mujoco
+
+    _, _, ckpt = trained_nodes
+    out = tmp_path / "like_sc"
+    assert main(["generate", "--ckpt", str(ckpt), "--like", str(files[0]), "--radius", "0.3",
+                 "-n", "2", "--out", str(out), "--jobs", "1", "--no-validate",
+                 "--self-collision"]) == 0
+    assert json.loads((out / "run.json").read_text())["self_collision"] is True
+    for k in range(2):
+        model = mujoco.MjModel.from_xml_path(str(out / f"robot_{k:06d}" / "robot.xml"))
+        assert (model.geom_conaffinity[model.geom_bodyid != 0] == 1).all()
+
+
 def test_like_in_batches_writes_the_same_robots(trained_nodes, files, tmp_path, monkeypatch):
     """Variations are decoded, written and logged LIKE_BATCH at a time; batches of 2 give
     the same files and records as one batch."""
