@@ -73,12 +73,21 @@ def cmd_generate(args: argparse.Namespace) -> int:
 
     if args.like:
         check_like(args.radius, args.n, args.redraws, args.seed, jobs=args.jobs)
+        unused = [flag for flag, given in (
+            ("--temperature", args.temperature != 1.0), ("--prior", args.prior is not None),
+            ("--node-temperature", args.node_temperature is not None),
+            ("--batch-size", args.batch_size != 1024)) if given]
+        if unused:  # they were ignored silently until 2026-12-01
+            raise RobovaeError(f"robovae: {', '.join(unused)}: not used with --like (variations "
+                               "are drawn within --radius of the robot's own latent)")
         from robovae.design.variations import generate_like
 
         report = generate_like(args.ckpt, args.like, args.radius, args.n, args.out,
                                seed=args.seed, validate=args.validate, jobs=args.jobs,
                                scene=args.scene, overwrite=args.overwrite,
                                floating=args.floating_base, redraws=args.redraws,
+                               mirror=args.mirror_limbs, stance=args.stance,
+                               quality=args.quality, controls=args.validation,
                                self_collision=args.self_collision)
         print(report.format())
         print(f"manifest: {report.out / 'manifest.jsonl'}, summary: {report.out / 'summary.json'}")

@@ -133,12 +133,14 @@ LIKE_BATCH = 256
 def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius: float, n: int,
                   out: str | os.PathLike, seed: int = 0, validate: bool = True, jobs: int = 0,
                   scene: bool = True, overwrite: bool = False, floating: bool = True,
-                  variance: float = LIKE_VARIANCE, redraws: int = 4,
+                  variance: float = LIKE_VARIANCE, redraws: int = 4, mirror: bool = True,
+                  stance: bool = True, quality: bool = True, controls: str = "held",
                   self_collision: bool = False) -> GenerationReport:
     """Write ``n`` variations of ``robot`` within ``radius`` prior standard deviations in the
-    prior's principal subspace holding ``variance`` of its variance (module docstring);
-    ``self_collision``: their bodies collide with each other, as with ``robovae generate``
-    (:mod:`robovae.data.self_collision`).
+    prior's principal subspace holding ``variance`` of its variance (module docstring).
+    ``mirror``, ``stance``, ``quality``, ``controls`` and ``self_collision`` as in
+    :func:`robovae.generate.pipeline.generate` (mirrored limbs, the stance rules, the quality
+    measures, the validation's simulation, bodies that collide with each other).
 
     Raises:
         RobovaeError: ``radius < 0``, ``n < 1``, ``redraws`` or ``jobs`` negative,
@@ -156,8 +158,11 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
     run = {"model": model_fingerprint(model), "like": digest, "radius": radius,
            "radius_space": f"prior standard deviations, principal subspace {variance:g}",
            "seed": seed, "redraws": redraws, "floating": floating, "writer": WRITER}
-    if self_collision:  # as robovae generate: folders without it resume
-        run["self_collision"] = True
+    # the settings that change the files, recorded when not the defaults (older folders resume)
+    run.update({k: v for k, v, default in (
+        ("mirror", mirror, True), ("stance", stance, True),
+        ("self_collision", self_collision, False),
+        ("validation", controls if validate else "held", "held")) if v != default})
     with FolderLock(out, "robots"):  # as robovae generate: one run writes there at a time
         claim(out, run, overwrite)
         model = model.to(torch.float64)  # as robovae generate: a robot never depends on its batch
@@ -165,11 +170,13 @@ def generate_like(model: RoboVAE | str | Path, robot: str | os.PathLike, radius:
         basis = model.prior_directions(variance)[1]
         todo = [i for i in range(n) if i not in read_manifest(out)]
         jobs = jobs or (os.cpu_count() or 1)
+        write = {"validate": validate, "jobs": jobs, "scene": scene, "floating": floating,
+                 "mirror": mirror, "stance": stance, "quality": quality, "controls": controls,
+                 "self_collision": self_collision}
         with worker_pool(jobs, warm=True) if jobs > 1 and len(todo) >= 4 else nullcontext() as pool:
             for k in range(0, len(todo), LIKE_BATCH):
                 _like_batch(model, todo[k:k + LIKE_BATCH], encoded, basis, robot, radius, out,
-                            seed, redraws, validate, jobs, scene, floating, pool,
-                            self_collision)
+                            seed, redraws, pool, **write)
         reference = reconstruction_record(model, encoded, floating)
         spread = prior_spread(model, variance)
         return summarize(model, out, n, len(todo), validate, time.perf_counter() - start,
@@ -243,13 +250,12 @@ def like_metrics(records: list[dict], reference: dict, radius: float, spread: fl
 
 def _like_batch(model: RoboVAE, chunk: list[int], encoded: EncodedRobot, basis: np.ndarray,
                 robot: str | os.PathLike, radius: float, out: Path, seed: int, redraws: int,
-                validate: bool, jobs: int, scene: bool, floating: bool,
-                pool: Executor | None, self_collision: bool = False) -> None:
-    """Decode, write and log variations ``chunk`` (:func:`generate_like`)."""
+                pool: Executor | None, **write: Any) -> None:
+    """Decode, write and log variations ``chunk`` (:func:`generate_like`; ``write``: the
+    keyword arguments of :func:`~robovae.generate.pipeline.write_records`)."""
     z, graphs, draws = draw_variations(model, encoded, basis, radius, seed, chunk, redraws)
-    records = write_records(model, chunk, z, graphs, out, seed=seed, validate=validate,
-                            jobs=jobs, scene=scene, floating=floating, pool=pool, draws=draws,
-                            self_collision=self_collision)
+    records = write_records(model, chunk, z, graphs, out, seed=seed, pool=pool, draws=draws,
+                            **write)
     for rec in records:
         rec.pop("temperature", None)
         rec.update(like=str(robot), radius=radius)

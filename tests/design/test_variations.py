@@ -13,6 +13,7 @@ from robovae.cli import main
 from robovae.data.procedural import procedural_spec
 from robovae.design import variations
 from robovae.design.variations import SHEET_STEPS, ball_offsets, encode_file, sheet_steps
+from robovae.generate.pipeline import read_manifest
 from robovae.model.checkpoint import own_model
 from robovae.model.prior import unfinished
 
@@ -66,20 +67,28 @@ def test_like_writes_variations_within_radius(trained_nodes, files, tmp_path, ca
     assert (out / "robot_000004" / "robot.xml").is_file()
 
 
-def test_like_with_self_collision(trained_nodes, files, tmp_path, capsys):
-    """generate --like --self-collision: the variations collide with themselves (it was
-    ignored: the flag of robovae generate did not reach the variations)."""
+def test_like_takes_the_writing_options_of_generate(trained_nodes, files, tmp_path, capsys):
+    """generate --like with --self-collision, --no-stance, --no-mirror-limbs, --no-quality: the
+    variations are written so (the flags were ignored: they are the generate parser's), the
+    run records what changes the files; the sampling options of prior draws are refused."""
     import mujoco
 
     _, _, ckpt = trained_nodes
     out = tmp_path / "like_sc"
-    assert main(["generate", "--ckpt", str(ckpt), "--like", str(files[0]), "--radius", "0.3",
-                 "-n", "2", "--out", str(out), "--jobs", "1", "--no-validate",
-                 "--self-collision"]) == 0
-    assert json.loads((out / "run.json").read_text())["self_collision"] is True
-    for k in range(2):
-        model = mujoco.MjModel.from_xml_path(str(out / f"robot_{k:06d}" / "robot.xml"))
+    argv = ["generate", "--ckpt", str(ckpt), "--like", str(files[0]), "--radius", "0.3", "-n",
+            "2", "--out", str(out), "--jobs", "1"]
+    assert main([*argv, "--self-collision", "--no-stance", "--no-mirror-limbs",
+                 "--no-quality"]) == 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["self_collision"] is True and run["stance"] is False and run["mirror"] is False
+    for rec in read_manifest(out).values():
+        assert "quality" not in rec and "mirror_limbs" not in rec["rules"]
+        model = mujoco.MjModel.from_xml_path(str(out / rec["path"]))
         assert (model.geom_conaffinity[model.geom_bodyid != 0] == 1).all()
+    capsys.readouterr()
+    assert main([*argv[:-2], "--temperature", "0.5", "--prior", "standard"]) == 2
+    err = capsys.readouterr().err
+    assert "--temperature, --prior: not used with --like" in err and err.count("\n") == 1
 
 
 def test_like_in_batches_writes_the_same_robots(trained_nodes, files, tmp_path, monkeypatch):
