@@ -117,7 +117,8 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
     from robovae.design.variations import interpolate_files
 
     res = interpolate_files(args.ckpt, args.a, args.b, args.steps, args.out,
-                            validate=args.validate, sheet=args.sheet)
+                            validate=args.validate, sheet=args.sheet,
+                            self_collision=args.self_collision)
     rows = [{"step": k, "t": f"{s['t']:.3f}", "valid": s["valid"], "reason": s["reason"],
              "robot": s["path"]} for k, s in enumerate(res["steps"])]
     print(format_table(rows, ["step", "t", "valid", "reason", "robot"]))
@@ -322,6 +323,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulate each step 1 s in MuJoCo and classify it")
     i.add_argument("--sheet", action=argparse.BooleanOptionalAction, default=True,
                    help="render the contact sheet sheet.png (MUJOCO_GL=egl off-screen)")
+    i.add_argument("--self-collision", action="store_true",
+                   help="the steps' bodies collide with each other, but for the pairs in "
+                   "contact at rest (self_collision_excludes)")
     i.set_defaults(func=cmd_interpolate)
     o = sub.add_parser("optimize", help="CMA-ES over the latent space for a task (walk, step, "
                        "stand, reach), against random prior samples and procedural robots")

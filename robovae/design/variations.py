@@ -275,12 +275,14 @@ def sheet_steps(steps: int) -> list[int]:
 
 def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str | os.PathLike,
                       steps: int, out: str | os.PathLike, validate: bool = True,
-                      sheet: bool = True) -> dict:
-    """Interpolate between two robot files and write the path (module docstring).
+                      sheet: bool = True, self_collision: bool = False) -> dict:
+    """Interpolate between two robot files and write the path (module docstring); with
+    ``self_collision`` the steps' bodies collide with each other but for the pairs in contact
+    at rest (:mod:`robovae.data.self_collision`).
 
     Returns:
-        the ``path.json`` content: ``a``, ``b``, and per step ``t``, ``path``, ``valid``,
-        ``reason``; plus ``sheet`` (PNG path or None).
+        the ``path.json`` content: ``a``, ``b`` (and ``self_collision: true`` when set), and
+        per step ``t``, ``path``, ``valid``, ``reason``; plus ``sheet`` (PNG path or None).
 
     Raises:
         RobovaeError: ``steps < 2``, a bad checkpoint, ``out`` not empty, written by another
@@ -297,7 +299,9 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
         tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
         try:
             result = {"a": str(a), "b": str(b),
-                      **_write_path(model, ga, gb, steps, tmp, validate, sheet)}
+                      **({"self_collision": True} if self_collision else {}),
+                      **_write_path(model, ga, gb, steps, tmp, validate, sheet,
+                                    self_collision)}
             if result["sheet"]:
                 result["sheet"] = str(out / "sheet.png")
             (tmp / "path.json").write_text(json.dumps(result, indent=1))
@@ -311,14 +315,16 @@ def interpolate_files(model: RoboVAE | str | Path, a: str | os.PathLike, b: str 
 
 
 def _write_path(model: RoboVAE, a: RobotData, b: RobotData, steps: int, folder: Path,
-                validate: bool, sheet: bool) -> dict[str, Any]:
+                validate: bool, sheet: bool, self_collision: bool = False
+                ) -> dict[str, Any]:
     """Write the path's steps and, with ``sheet``, its contact sheet into ``folder``; returns
     the ``path.json`` content without its ends (``steps``, ``sheet``)."""
     from robovae.evaluate.render import contact_sheet
     from robovae.generate.interpolate import interpolate
 
     rows: list[dict[str, Any]] = []
-    for s in interpolate(model, a, b, steps=steps, out=folder, validate=validate):
+    for s in interpolate(model, a, b, steps=steps, out=folder, validate=validate,
+                         self_collision=self_collision):
         assert s.path is not None  # written: interpolate was given a folder
         rows.append({"t": round(s.t, 6), "path": str(s.path.relative_to(folder)),
                      "valid": s.validation.valid if s.validation else None,

@@ -10,7 +10,9 @@ robots' reconstructions (exactly where a robot's reconstructed tree is its own).
 then gets the decoded fixes of ``robovae generate``
 (:func:`~robovae.generate.fixes.decoded_fixes`: rails with ends, a floating base; limbs are not
 mirrored, so that the ends stay the reconstructions) and the writer's stance rules
-(:mod:`robovae.generate.stance`), writes ``step_<k>/robot.xml`` and validates it in MuJoCo
+(:mod:`robovae.generate.stance`), writes ``step_<k>/robot.xml`` (with ``self_collision`` its
+bodies collide with each other but for the pairs in contact at rest,
+:mod:`robovae.data.self_collision`) and validates it in MuJoCo
 (:func:`~robovae.generate.validate.validate_robot`): the paper's §6.2 question of whether the
 space between two designs holds usable robots.
 """
@@ -72,7 +74,8 @@ def step_name(k: int, steps: int) -> str:
 
 
 def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
-                out: str | Path | None = None, validate: bool = True) -> list[Step]:
+                out: str | Path | None = None, validate: bool = True,
+                self_collision: bool = False) -> list[Step]:
     """Decode the latent path from ``a`` to ``b`` (:data:`DECODE_BATCH` steps at a time);
     with ``out``, write each step's MJCF under ``out/step_<k>/`` (:func:`step_name`) and
     (``validate``) simulate it (see the module docstring)."""
@@ -88,7 +91,7 @@ def interpolate(model: RoboVAE, a: RobotData, b: RobotData, steps: int = 11,
         if out is not None:
             name = step_name(k, steps)
             written = write_robot(g, Path(out) / name, model.feature_set, name=name,
-                                  stance=True)
+                                  stance=True, self_collision=self_collision)
             step.path = Path(written.robot_path)
             if validate:
                 step.validation = validate_robot(step.path)

@@ -80,13 +80,17 @@ class RobotWriter(BasePredictionWriter):
         validate: simulate and classify each robot (:mod:`robovae.generate.validate`).
         scene: also write ``scene.xml``.
         jobs: validation worker processes per rank (0: all cores / world size).
+        self_collision: the robots' bodies collide with each other, but for the pairs in
+            contact at rest (:mod:`robovae.data.self_collision`), as ``robovae generate
+            --self-collision``.
     """
 
     def __init__(self, output_dir: str = "runs/samples", validate: bool = True,
-                 scene: bool = True, jobs: int = 0) -> None:
+                 scene: bool = True, jobs: int = 0, self_collision: bool = False) -> None:
         super().__init__(write_interval="batch")
         self.out = Path(output_dir)
         self.validate, self.scene, self.jobs = validate, scene, jobs
+        self.self_collision = self_collision
         self.report: GenerationReport | None = None
         self._pool: WorkerPool | None = None
         self._lock = FolderLock(self.out)  # taken by rank 0 when the run claims the folder
@@ -125,6 +129,8 @@ class RobotWriter(BasePredictionWriter):
                "node_temperature": model.hparams.get("node_temperature"),
                "redraws": int(hp.predict_redraws),
                "prior": prior_name(model), "stance": True, "writer": WRITER}
+        if self.self_collision:  # as generate's: either command resumes the other's folder
+            run["self_collision"] = True
         refused = None
         if trainer.is_global_zero:
             try:  # held by rank 0 until the run ends (teardown): one run writes here at a time
@@ -158,7 +164,8 @@ class RobotWriter(BasePredictionWriter):
                                 prediction["graphs"], self.out, seed=prediction["seed"],
                                 temperature=prediction["temperature"], validate=self.validate,
                                 jobs=jobs, scene=self.scene, pool=self._pool,
-                                draws=prediction.get("draws"))
+                                draws=prediction.get("draws"),
+                                self_collision=self.self_collision)
         # (a torn last line of a killed run is terminated first, as by generate)
         with open_manifest(self.out / f"manifest-rank{trainer.global_rank}.jsonl") as manifest:
             append_records(manifest, records)

@@ -196,6 +196,30 @@ def test_interpolate_writes_steps_and_sheet(trained_nodes, files, tmp_path, caps
     assert sorted(p.name for p in tmp_path.iterdir()) == ["path"]  # no temporary left
 
 
+def test_interpolate_self_collision(trained_nodes, files, tmp_path, capsys):
+    """--self-collision: every step's robot geoms collide with each other, but for the pairs
+    touching at rest, and the path says so; without it they do not (the default files)."""
+    import mujoco
+
+    from robovae.data.self_collision import resting_pairs
+
+    _, _, ckpt = trained_nodes
+    a, b, _ = files
+    argv = ["interpolate", str(a), str(b), "--ckpt", str(ckpt), "--steps", "2", "--no-sheet",
+            "--no-validate"]
+    for flag, out in ((["--self-collision"], tmp_path / "sc"), ([], tmp_path / "plain")):
+        assert main([*argv, "--out", str(out), *flag]) == 0
+        res = json.loads((out / "path.json").read_text())
+        assert res.get("self_collision", False) is bool(flag)
+        for step in res["steps"]:
+            model = mujoco.MjModel.from_xml_path(str(out / step["path"]))
+            robot = model.geom_bodyid != 0
+            assert (model.geom_conaffinity[robot] == (1 if flag else 0)).all()
+            if flag:
+                assert resting_pairs(model) == []
+    capsys.readouterr()
+
+
 @pytest.mark.parametrize("case", ["steps", "junk", "out"])
 def test_interpolate_refuses_bad_input(trained_nodes, files, tmp_path, capsys, case):
     _, _, ckpt = trained_nodes

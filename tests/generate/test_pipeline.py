@@ -191,6 +191,26 @@ def test_predict_writer_matches_generate(trained, tmp_path):
     assert len(dm.predict_set) == 0 and writer.report.total == 5
 
 
+def test_predict_writer_self_collision_matches_generate(trained, tmp_path):
+    """RobotWriter(self_collision=True) writes generate --self-collision's files and run, so
+    either command resumes the other's folder."""
+    _, _, ckpt = trained
+    model = copy.deepcopy(trained[0])
+    dm = RobotDataModule(["zoo"], root=str(tmp_path / "cache"), predict_samples=3,
+                         predict_seed=2, batch_size=4)
+    writer = RobotWriter(str(tmp_path / "pred"), validate=False, jobs=1, self_collision=True)
+    trainer = L.Trainer(accelerator="cpu", devices=1, logger=False, callbacks=[writer],
+                        precision="64-true",
+                        enable_progress_bar=False, enable_model_summary=False)
+    trainer.predict(model, dm, return_predictions=False)
+    generate(ckpt, 3, tmp_path / "gen", seed=2, validate=False, progress=False, jobs=1,
+             self_collision=True)
+    assert _files(tmp_path / "pred") == _files(tmp_path / "gen")
+    assert json.loads((tmp_path / "pred" / RUN).read_text())["self_collision"] is True
+    with pytest.raises(RobovaeError, match="self_collision differ"):
+        generate(ckpt, 3, tmp_path / "pred", seed=2, validate=False, progress=False, jobs=1)
+
+
 def test_predict_refuses_an_untrained_model(tmp_path):
     """``robovae predict`` without ``--ckpt_path`` sampled a model of random weights and no
     fitted normaliser: 3 "robots", all degenerate, exit 0 (until 2026-11-29). Refused, and no
