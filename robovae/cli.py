@@ -69,14 +69,14 @@ def cmd_data(args: argparse.Namespace) -> int:
 
 def cmd_generate(args: argparse.Namespace) -> int:
     """Sample robots from a checkpoint, write MJCF, validate, print the sample report."""
-    from robovae.options import check_generate, check_like  # before the heavy imports
+    from robovae.options import BATCH_SIZE, check_generate, check_like  # before the heavy imports
 
     if args.like:
         check_like(args.radius, args.n, args.redraws, args.seed, jobs=args.jobs)
         unused = [flag for flag, given in (
             ("--temperature", args.temperature != 1.0), ("--prior", args.prior is not None),
             ("--node-temperature", args.node_temperature is not None),
-            ("--batch-size", args.batch_size != 1024)) if given]
+            ("--batch-size", args.batch_size != BATCH_SIZE)) if given]
         if unused:  # they were ignored silently until 2026-12-01
             raise RobovaeError(f"robovae: {', '.join(unused)}: not used with --like (variations "
                                "are drawn within --radius of the robot's own latent)")
@@ -244,6 +244,8 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``robovae`` argument parser: one sub-command per pipeline step."""
+    from robovae.options import BATCH_SIZE  # no torch: the parser stays light
+
     p = _Parser(prog="robovae", description=__doc__,
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
@@ -270,7 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the standing test; default) or zero controls")
     g.add_argument("--scene", action=argparse.BooleanOptionalAction, default=True,
                    help="also write scene.xml (floor + light + robot)")
-    g.add_argument("--batch-size", type=int, default=1024, help="latents decoded at once")
+    g.add_argument("--batch-size", type=int, default=BATCH_SIZE, help="latents decoded at once")
     g.add_argument("--jobs", type=int, default=0, help="validation processes (0: all cores)")
     g.add_argument("--floating-base", action=argparse.BooleanOptionalAction, default=True,
                    help="a robot whose root is a single joint gets a free joint (paper34 has "

@@ -25,9 +25,8 @@ from robovae.design.score import score_robot
 
 __all__ = ["Candidate", "evaluate", "failed", "scored"]
 
-#: A worker's candidate: ``(robot, folder, feature_set, task, seeds[, self_collision])``.
-Candidate = (tuple[TreeArrays | str, str, str, str, Sequence[int]]
-             | tuple[TreeArrays | str, str, str, str, Sequence[int], bool])
+#: A worker's candidate: ``(robot, folder, feature_set, task, seeds, self_collision)``.
+Candidate = tuple[TreeArrays | str, str, str, str, Sequence[int], bool]
 
 
 def failed(error: Exception) -> dict:
@@ -51,13 +50,12 @@ def scored(path: Path, task: str, seeds: Sequence[int]) -> dict:
 def evaluate(item: Candidate) -> dict:
     """Write one candidate into a scratch folder, score it, delete the folder (worker).
 
-    ``item`` is ``(robot, folder, feature_set, task, seeds[, self_collision])``: ``robot`` the
+    ``item`` is ``(robot, folder, feature_set, task, seeds, self_collision)``: ``robot`` the
     prepared graph (:class:`TreeArrays`, written by :func:`robovae.generate.writer.write_robot`,
     its bodies colliding with each other with ``self_collision``) or MJCF text (written as it
     is). Returns :func:`scored`'s record; a candidate that cannot be written scores 0
     (:func:`failed`)."""
-    robot, folder_name, fs_name, task, seeds = item[:5]
-    self_collision = bool(item[5]) if len(item) > 5 else False
+    robot, folder_name, fs_name, task, seeds, self_collision = item
     from robovae.generate.writer import write_robot
 
     folder = Path(folder_name)

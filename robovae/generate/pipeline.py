@@ -50,7 +50,7 @@ from robovae.generate.writer import WRITER
 from robovae.model.checkpoint import own_model
 from robovae.model.prior import draw_robots, latent, node_noise  # noqa: F401  (re-exported)
 from robovae.model.vae import PRIORS, RoboVAE
-from robovae.options import check_generate
+from robovae.options import BATCH_SIZE, check_generate
 
 if TYPE_CHECKING:
     from tqdm.auto import tqdm
@@ -212,7 +212,7 @@ def generate(
     seed: int = 0,
     temperature: float = 1.0,
     validate: bool = True,
-    batch_size: int = 1024,
+    batch_size: int = BATCH_SIZE,
     jobs: int = 0,
     progress: bool = True,
     scene: bool = True,
@@ -259,8 +259,7 @@ def generate(
     ``balance_home``). ``self_collision``: the robot's bodies collide with each other, but for
     the pairs in contact at rest (:mod:`robovae.data.self_collision`; rule
     ``self_collision_excludes``). ``batch_size``: latents decoded at once, and the robots per
-    manifest flush (1024: the decoder's steps are shared by more robots, 2.5 against 4.4 ms of
-    CPU a robot at 256, no faster beyond; docs/generation.md).
+    manifest flush (:data:`~robovae.options.BATCH_SIZE`).
     """
     if prior is not None and prior not in PRIORS:
         raise RobovaeError(f"robovae: --prior must be one of {', '.join(PRIORS)}, got {prior!r}")

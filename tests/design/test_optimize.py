@@ -251,10 +251,10 @@ def test_a_worker_scores_candidates_without_torch(tmp_path):
     graph = model_to_graph(procedural_spec(3, kind="quadruped").compile(), "kinematic")
     arrays = TreeArrays.of(decoded_fixes(graph, "kinematic")[0])
     broken = arrays.with_x(arrays.x[:, :3])  # fewer feature columns than the set has
-    items = [(arrays, str(tmp_path / "a"), "kinematic", "walk", [0]),
+    items = [(arrays, str(tmp_path / "a"), "kinematic", "walk", [0], False),
              (procedural_spec(3, kind="quadruped").to_xml(), str(tmp_path / "b"), "kinematic",
-              "stand", [0]),
-             (broken, str(tmp_path / "c"), "kinematic", "stand", [0])]
+              "stand", [0], False),
+             (broken, str(tmp_path / "c"), "kinematic", "stand", [0], False)]
     (tmp_path / "items.pkl").write_bytes(pickle.dumps(items))
     script = (
         "import pickle, sys, json\n"
