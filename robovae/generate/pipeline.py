@@ -205,6 +205,29 @@ def prior_name(model: RoboVAE) -> str:
     return "mixture" if model.sampling_mixture() is not None else "standard"
 
 
+def run_record(model: RoboVAE, fingerprint: str, seed: int, temperature: float,
+               node_temperature: float | None, redraws: int, *, floating: bool = True,
+               mirror: bool = True, stance: bool = True, validation: str | None = "held",
+               self_collision: bool = False) -> dict:
+    """The ``run.json`` of a generation folder: what its robots depend on, so that a run is
+    resumed only with the same model (``fingerprint``, :func:`model_fingerprint` of its float32
+    weights), sampling, graph fixes, writer (:data:`~robovae.generate.writer.WRITER`) and
+    validation. ``validation``: the validation's controls (``"held"``, ``"zero"``), ``None``:
+    not validated. Keys added since the first folders are left out at their old value
+    (``validation`` unless ``"held"``, ``self_collision`` unless true) so that those folders
+    resume. ``generate`` and :class:`~robovae.generate.predict.RobotWriter` both build it here:
+    either resumes the other's folder."""
+    run = {"model": fingerprint, "seed": seed, "temperature": temperature,
+           "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
+           "node_temperature": node_temperature, "redraws": redraws,
+           "prior": prior_name(model), "stance": stance, "writer": WRITER}
+    if validation is not None and validation != "zero":
+        run["validation"] = validation
+    if self_collision:
+        run["self_collision"] = True
+    return run
+
+
 def generate(
     model: RoboVAE | str | Path,
     n: int,
@@ -271,14 +294,9 @@ def generate(
     if node_temperature is None:  # the checkpoint's setting, recorded as such
         node_temperature = model.hparams.get("node_temperature")
     out = Path(out)
-    run = {"model": model_fingerprint(model), "seed": seed, "temperature": temperature,
-           "feature_set": model.feature_set.name, "floating": floating, "mirror": mirror,
-           "node_temperature": node_temperature, "redraws": redraws,
-           "prior": prior_name(model), "stance": stance, "writer": WRITER}
-    if validate and controls != "zero":  # folders validated with zero controls resume
-        run["validation"] = controls
-    if self_collision:  # folders of robots that do not collide with themselves resume
-        run["self_collision"] = True
+    run = run_record(model, model_fingerprint(model), seed, temperature, node_temperature,
+                     redraws, floating=floating, mirror=mirror, stance=stance,
+                     validation=controls if validate else None, self_collision=self_collision)
     with FolderLock(out, "robots"):  # a second run into out is refused while this one writes
         claim(out, run, overwrite)
         # float64 decoding: batched float32 matmuls differ in the last bits with the batch size, and

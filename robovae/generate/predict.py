@@ -37,14 +37,13 @@ from robovae.generate.pipeline import (
     claim,
     model_fingerprint,
     open_manifest,
-    prior_name,
     read_manifest,
     read_run,
+    run_record,
     summarize,
     worker_pool,
     write_records,
 )
-from robovae.generate.writer import WRITER
 from robovae.model.vae import RoboVAE
 
 
@@ -123,14 +122,12 @@ class RobotWriter(BasePredictionWriter):
             raise RobovaeError("robovae: the model to sample from is untrained (its feature "
                                "normaliser was never fitted): give --ckpt_path, the checkpoint "
                                "of a trained model")
-        run = {"model": model_fingerprint(_Float32Weights(model)),
-               "seed": int(hp.predict_seed), "temperature": float(hp.predict_temperature),
-               "feature_set": model.feature_set.name, "floating": True, "mirror": True,
-               "node_temperature": model.hparams.get("node_temperature"),
-               "redraws": int(hp.predict_redraws),
-               "prior": prior_name(model), "stance": True, "writer": WRITER}
-        if self.self_collision:  # as generate's: either command resumes the other's folder
-            run["self_collision"] = True
+        # as generate's (held controls when validated): either resumes the other's folder
+        run = run_record(model, model_fingerprint(_Float32Weights(model)), int(hp.predict_seed),
+                         float(hp.predict_temperature), model.hparams.get("node_temperature"),
+                         int(hp.predict_redraws),
+                         validation="held" if self.validate else None,
+                         self_collision=self.self_collision)
         refused = None
         if trainer.is_global_zero:
             try:  # held by rank 0 until the run ends (teardown): one run writes here at a time

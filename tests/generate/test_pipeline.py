@@ -211,6 +211,29 @@ def test_predict_writer_self_collision_matches_generate(trained, tmp_path):
         generate(ckpt, 3, tmp_path / "pred", seed=2, validate=False, progress=False, jobs=1)
 
 
+def test_predict_resumes_a_validated_generation(trained, tmp_path):
+    """A validated folder of ``robovae generate`` records its validation (held controls);
+    RobotWriter, which validates the same way, left it out of its ``run.json`` and so refused
+    generate's folder ("validation differ") while a ``--no-validate`` generate resumed its
+    own (until 2026-12-02). Both now build the record in one place: each resumes the other's
+    validated folder, and an unvalidated run is refused."""
+    _, _, ckpt = trained
+    out = tmp_path / "gen"
+    generate(ckpt, 2, out, seed=2, progress=False, jobs=1)
+    dm = RobotDataModule(["zoo"], root=str(tmp_path / "cache"), predict_samples=3,
+                         predict_seed=2, batch_size=4)
+    writer = RobotWriter(str(out), jobs=1)
+    trainer = L.Trainer(accelerator="cpu", devices=1, logger=False, callbacks=[writer],
+                        precision="64-true", enable_progress_bar=False,
+                        enable_model_summary=False)
+    trainer.predict(copy.deepcopy(trained[0]), dm, return_predictions=False)
+    assert (writer.report.total, writer.report.new) == (3, 1)
+    assert json.loads((out / RUN).read_text())["validation"] == "held"
+    assert all("valid" in r for r in read_manifest(out).values())
+    with pytest.raises(RobovaeError, match="validation differ"):
+        generate(ckpt, 4, out, seed=2, validate=False, progress=False, jobs=1)
+
+
 def test_predict_refuses_an_untrained_model(tmp_path):
     """``robovae predict`` without ``--ckpt_path`` sampled a model of random weights and no
     fitted normaliser: 3 "robots", all degenerate, exit 0 (until 2026-11-29). Refused, and no
