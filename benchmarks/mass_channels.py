@@ -82,21 +82,19 @@ def main() -> None:
                "reconstructed, from z": reconstructed(model, corpus, True),
                "samples, node temperature 0": sampled(model, args.n, 0.0),
                "samples, node temperature 1": sampled(model, args.n, 1.0)}
-    qs = [0.05, 0.25, 0.5, 0.75, 0.9, 0.95]
-    rows = [{"robots": "training robots", "W1 kg": "-", "mean kg": f"{true.mean():.1f}",
-             **{f"q{round(q * 100)}": f"{v:.1f}" for q, v in zip(qs, np.quantile(true, qs))}}]
-    masses, subs = {}, {}
-    for label, gs in columns.items():
-        m = masses[label] = np.array([total_mass(g, column) for g in gs])
-        subs[label] = np.array([root_subtreemass(g, sub) for g in gs])
-        rows.append({"robots": label, "W1 kg": f"{wasserstein_1d(m, true):.2f}",
-                     "mean kg": f"{m.mean():.1f}",
-                     **{f"q{round(q * 100)}": f"{v:.1f}" for q, v in zip(qs, np.quantile(m, qs))}})
-    for label in list(columns)[1:]:  # decoded graphs: the root's own estimate of the total
-        m = subs[label]
-        rows.append({"robots": f"{label}, root subtreemass", "W1 kg":
-                     f"{wasserstein_1d(m, true):.2f}", "mean kg": f"{m.mean():.1f}",
-                     **{f"q{round(q * 100)}": f"{v:.1f}" for q, v in zip(qs, np.quantile(m, qs))}})
+    def row(label: str, m: np.ndarray, w1: str) -> dict:
+        qs = [0.05, 0.25, 0.5, 0.75, 0.9, 0.95]
+        return {"robots": label, "W1 kg": w1, "mean kg": f"{m.mean():.1f}",
+                **{f"q{round(q * 100)}": f"{v:.1f}" for q, v in zip(qs, np.quantile(m, qs))}}
+
+    rows = [row("training robots", true, "-")]
+    masses = {label: np.array([total_mass(g, column) for g in gs])
+              for label, gs in columns.items()}
+    # decoded graphs (not the other half): the root's own estimate of the total
+    subs = {label: np.array([root_subtreemass(g, sub) for g in gs])
+            for label, gs in list(columns.items())[1:]}
+    for label, m in [*masses.items(), *((f"{k}, root subtreemass", v) for k, v in subs.items())]:
+        rows.append(row(label, m, f"{wasserstein_1d(m, true):.2f}"))
     print(f"{len(corpus)} of {what}")
     print(format_table(rows, list(rows[0])))
     full = masses["reconstructed, full channel"]
@@ -104,14 +102,15 @@ def main() -> None:
     ranks = np.argsort(true)
     bias = []
     for k, idx in enumerate(np.array_split(ranks, 5)):
-        ok = (true[idx] > 0) & (full[idx] > 0) & (root[idx] > 0)
+        t, f, r = true[idx], full[idx], root[idx]
+        ok, ok_root = (t > 0) & (f > 0), (t > 0) & (r > 0)
         bias.append({"true mass quintile": k + 1,
-                     "true kg (mean)": f"{true[idx].mean():.1f}",
-                     "reconstructed kg (mean)": f"{full[idx].mean():.1f}",
+                     "true kg (mean)": f"{t.mean():.1f}",
+                     "reconstructed kg (mean)": f"{f.mean():.1f}",
                      "median log(reconstructed / true)":
-                         f"{np.median(np.log(full[idx][ok] / true[idx][ok])):+.3f}",
+                         f"{np.median(np.log(f[ok] / t[ok])):+.3f}",
                      "root subtreemass: median log(/ true)":
-                         f"{np.median(np.log(root[idx][ok] / true[idx][ok])):+.3f}"})
+                         f"{np.median(np.log(r[ok_root] / t[ok_root])):+.3f}"})
     print(format_table(bias, list(bias[0])))
 
 

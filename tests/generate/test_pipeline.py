@@ -230,6 +230,7 @@ def test_predict_resumes_a_validated_generation(trained, tmp_path):
     assert (writer.report.total, writer.report.new) == (3, 1)
     assert json.loads((out / RUN).read_text())["validation"] == "held"
     assert all("valid" in r for r in read_manifest(out).values())
+    assert generate(ckpt, 3, out, seed=2, progress=False, jobs=1).new == 0  # and back
     with pytest.raises(RobovaeError, match="validation differ"):
         generate(ckpt, 4, out, seed=2, validate=False, progress=False, jobs=1)
 
