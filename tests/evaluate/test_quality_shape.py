@@ -58,7 +58,26 @@ def test_self_penetration_between_non_adjacent_bodies() -> None:
     spec.body("shin0").geoms[0].fromto = [0, 0, 0, -0.4, 0, 0]
     r = attachment(spec)
     assert r.penetration > 0.02 and r.penetrating_pairs >= 1
+    assert r.off_joint_pairs == r.penetrating_pairs  # no joint where the shins meet
     assert attachment(spec, tolerance=1.0).penetrating_pairs == 0
+
+
+def test_an_overlap_around_a_joint_is_not_off_joint() -> None:
+    spec = legged([0.4] * 2)
+    # a hip of two hinges at one point: leg 0's shin hangs from the hip itself, thick, so its
+    # top reaches into the trunk (its grandparent) around the hip's joints
+    shin = spec.body("shin0")
+    shin.pos = [0, 0, 0]
+    shin.geoms[0].size = [0.06, 0, 0]
+    r = attachment(spec)
+    assert r.penetration > 0.04 and r.penetrating_pairs == 1 and r.off_joint_pairs == 0
+    # the same shin hung 0.3 m out from the hip on a long thigh, then turned back under the
+    # trunk: the overlap holds neither the hip's nor the knee's joint
+    spec = legged([0.6] * 2)
+    spec.body("shin0").geoms[0].fromto = [0, 0, 0, -0.3, 0, -0.02]
+    spec.body("shin0").geoms[0].size = [0.06, 0, 0]
+    r = attachment(spec)
+    assert r.penetrating_pairs >= 1 and r.off_joint_pairs >= 1
 
 
 def test_a_mirrored_robot_is_symmetric_and_an_asymmetric_one_is_not() -> None:

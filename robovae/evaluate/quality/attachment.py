@@ -15,7 +15,14 @@ At ``qpos0`` (``mj_forward``), with ``L`` the robot's extent (diagonal of its bo
 - **self-penetration**: the deepest overlap (m) between two geoms of bodies that are neither
   the same body nor parent and child (geoms that meet at a joint may overlap), whatever their
   collision flags (generated robots do not collide with themselves, yet an overlap is still
-  visible); a pair deeper than ``tolerance · L`` (1 %) is penetrating.
+  visible); a pair deeper than ``tolerance · L`` (1 %) is penetrating. A penetrating pair
+  is **off joint** when the tree path between its two bodies (the polyline through the
+  origins of the bodies below their nearest common ancestor) is longer than the two geoms are
+  thick together (the radii of the largest balls they hold; a mesh's bounding box). Links
+  shorter than that must overlap whichever way they turn: that is how geoms meet where several
+  joints sit at (nearly) one point (a hip of three hinges: the thigh reaches into the pelvis
+  through a short link). Off-joint overlaps are bodies passing through each other: legs
+  crossing, an arm through the hips, a sensor box through a hip.
 """
 
 from __future__ import annotations
@@ -31,6 +38,10 @@ from robovae.settings import check_settings, number
 
 __all__ = ["AttachResult", "attachment"]
 
+_G = mujoco.mjtGeom
+SPHERE, CAPSULE, CYLINDER, ELLIPSOID, BOX = (int(t) for t in (
+    _G.mjGEOM_SPHERE, _G.mjGEOM_CAPSULE, _G.mjGEOM_CYLINDER, _G.mjGEOM_ELLIPSOID, _G.mjGEOM_BOX))
+
 
 @dataclass
 class AttachResult:
@@ -41,6 +52,7 @@ class AttachResult:
     detached_bodies: list[str] = field(default_factory=list)
     penetration: float = 0.0  # deepest overlap between non-adjacent bodies, m
     penetrating_pairs: int = 0  # geom pairs overlapping deeper than tolerance · extent
+    off_joint_pairs: int = 0  # of those, pairs whose overlap holds no joint of their path
     extent: float = 0.0  # m
     gaps: dict[int, float] = field(default_factory=dict)  # body id -> gap to its parent, m
 
@@ -70,10 +82,37 @@ def _min_distance(model: mujoco.MjModel, data: mujoco.MjData, a: list[int], b: l
                for g1 in a for g2 in b)
 
 
+def _thickness(model: mujoco.MjModel, g: int) -> float:
+    """Radius (m) of the largest ball geom ``g`` holds (a mesh: of its bounding box)."""
+    size, kind = model.geom_size[g], int(model.geom_type[g])
+    if kind in (SPHERE, CAPSULE):
+        return float(size[0])
+    if kind == CYLINDER:
+        return float(min(size[0], size[1]))
+    if kind in (ELLIPSOID, BOX):
+        return float(size.min())
+    return float(model.geom_aabb[g, 3:].min())
+
+
+def _path_length(model: mujoco.MjModel, data: mujoco.MjData, a: int, b: int) -> float:
+    """Length (m) of the tree path between bodies ``a`` and ``b``: the polyline through the
+    origins of the bodies below their nearest common ancestor, ``a``'s side then ``b``'s."""
+    up_a, up_b = [a], [b]
+    while up_a[-1] > 0:
+        up_a.append(int(model.body_parentid[up_a[-1]]))
+    while up_b[-1] > 0:
+        up_b.append(int(model.body_parentid[up_b[-1]]))
+    common = next(x for x in up_a if x in up_b)
+    bodies = up_a[:up_a.index(common)] + up_b[:up_b.index(common)][::-1]
+    points = data.xpos[bodies]
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
 def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, list[int]],
-                 threshold: float) -> tuple[float, int]:
-    """Deepest overlap (m) between geoms of non-adjacent bodies and the pairs deeper than
-    ``threshold``; a bounding-sphere pre-test skips pairs that cannot touch."""
+                 threshold: float) -> tuple[float, int, int]:
+    """Deepest overlap (m) between geoms of non-adjacent bodies, the pairs deeper than
+    ``threshold`` and those of them off joint (module docstring); a bounding-sphere pre-test
+    skips pairs that cannot touch."""
     flat = np.array([g for gs in geoms.values() for g in gs], dtype=int)
     body = model.geom_bodyid[flat]
     parent = model.body_parentid[body]
@@ -81,13 +120,16 @@ def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, li
     gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (rb[:, None] + rb[None])
     apart = ((body[:, None] == body[None]) | (parent[:, None] == body[None])
              | (body[:, None] == parent[None]) | (gap > 0))
-    deepest, pairs = 0.0, 0
+    deepest, pairs, off_joint = 0.0, 0, 0
     for i, j in zip(*np.nonzero(np.triu(~apart, 1))):
-        depth = -float(mujoco.mj_geomDistance(model, data, int(flat[i]), int(flat[j]), 0.0,
-                                              None))
+        g1, g2 = int(flat[i]), int(flat[j])
+        depth = -float(mujoco.mj_geomDistance(model, data, g1, g2, 0.0, None))
         deepest = max(deepest, depth)
-        pairs += depth > threshold
-    return deepest, pairs
+        if depth > threshold:
+            pairs += 1
+            off_joint += (_path_length(model, data, int(body[i]), int(body[j]))
+                          > _thickness(model, g1) + _thickness(model, g2))
+    return deepest, pairs, off_joint
 
 
 def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
@@ -126,5 +168,6 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
             out.detached += 1
             out.detached_bodies.append(model.body(b).name or f"body{b}")
     if penetration:
-        out.penetration, out.penetrating_pairs = _penetration(model, data, geoms, tolerance * size)
+        out.penetration, out.penetrating_pairs, out.off_joint_pairs = _penetration(
+            model, data, geoms, tolerance * size)
     return out

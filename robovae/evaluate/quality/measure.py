@@ -14,6 +14,8 @@ model, :func:`~robovae.evaluate.quality.stage.stage_compiled`), and runs on that
 - ``judged``, ``detached``, ``all_attached``, ``detached_share``: bodies judged / detached
   (:mod:`~robovae.evaluate.quality.attachment`); ``penetration``: deepest self-penetration at
   rest over the extent; ``self_penetrating``: a contact deeper than 1 % of the extent;
+  ``penetrating_off_joint``: such a contact whose overlap holds no joint of the path between
+  the two bodies (bodies passing through each other, not links meeting at a joint);
 - ``floating``, ``stands``, ``fell_at``, ``stand_tilt``: the standing test
   (:mod:`~robovae.evaluate.quality.standing`; ``stands`` None when not floating);
 - ``gait_speed`` (extents/s), ``gait_speed_m_s``: with ``locomotion``, the best gait
@@ -53,8 +55,8 @@ from robovae.settings import check_settings, integer
 __all__ = ["QUALITY_KEYS", "measure", "measure_many", "robot_quality"]
 
 #: The fields of :func:`robot_quality` (generation's manifest and summary).
-QUALITY_KEYS = ("all_attached", "detached_share", "self_penetrating", "symmetric", "one_limb",
-                "floating", "stands", "limbs", "bodies", "dof", "mass")
+QUALITY_KEYS = ("all_attached", "detached_share", "self_penetrating", "penetrating_off_joint",
+                "symmetric", "one_limb", "floating", "stands", "limbs", "bodies", "dof", "mass")
 
 
 _P = ParamSpec("_P")
@@ -111,7 +113,8 @@ def measure(robot: Robot, locomotion: bool = False, describe: bool = True,
         at = _timed(out, "attachment", attachment, st)
         out.update(judged=at.bodies, detached=at.detached, all_attached=at.all_attached,
                    detached_share=at.detached_share, penetration=at.penetration / at.extent,
-                   self_penetrating=at.penetrating_pairs > 0)
+                   self_penetrating=at.penetrating_pairs > 0,
+                   penetrating_off_joint=at.off_joint_pairs > 0)
         kw = dict(stand_kw or {})
         if held is not None and held.stage is st and not {"stiffness", "limit_torques"} & set(kw):
             kw["held"] = held

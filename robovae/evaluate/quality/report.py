@@ -5,7 +5,8 @@ A population is a list of :func:`~robovae.evaluate.quality.measure.measure` reco
 several populations in columns (``samples``, ``training corpus``, ``procedural``, ``real
 robots`` ...) with one row per measure, comparing each with the training corpus:
 
-- shares: all bodies attached, mean detached share, self-penetrating, symmetric, one limb on
+- shares: all bodies attached, mean detached share, self-penetrating (and of those, away
+  from joints: bodies passing through each other), symmetric, one limb on
   the root, wheeled (a motor on a hinge without limits), standing (of the floating-base
   robots), median gait speed (extents/s) of all robots and of those not wheeled (stepping, not
   rolling);
@@ -65,6 +66,7 @@ def summarize(rows: Sequence[dict]) -> dict:
             "all_attached": _share(ok, "all_attached"),
             "detached_share": float(detached.mean()) if detached.size else math.nan,
             "self_penetrating": _share(ok, "self_penetrating"),
+            "penetrating_off_joint": _share(ok, "penetrating_off_joint"),
             "symmetric": _share(ok, "symmetric"), "one_limb": _share(ok, "one_limb"),
             "wheeled": _share(ok, "wheeled"),
             "floating": len(floating), "standing": _share(floating, "stands"),
@@ -125,6 +127,7 @@ def quality_table(populations: Mapping[str, Sequence[dict]], corpus: str = "trai
             ("all bodies attached", "all_attached", "{:.0%}"),
             ("bodies detached (mean)", "detached_share", "{:.1%}"),
             ("self-penetrating at rest", "self_penetrating", "{:.0%}"),
+            ("  of which away from joints", "penetrating_off_joint", "{:.0%}"),
             ("symmetric (mirrored limb pairs)", "symmetric", "{:.0%}"),
             ("one limb on the root", "one_limb", "{:.0%}"),
             ("wheeled (motor on a hinge without limits)", "wheeled", "{:.0%}"),
