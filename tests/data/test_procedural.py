@@ -40,6 +40,7 @@ from robovae.data.procedural.coverage import (
 from robovae.data.procedural.robots import draw_class
 from robovae.errors import RobovaeError
 from robovae.evaluate.behaviour import standing_test
+from robovae.evaluate.quality.attachment import attachment
 
 HINGE, SLIDE = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
 FREE = int(mujoco.mjtJoint.mjJNT_FREE)
@@ -513,3 +514,10 @@ def test_arm_end_effectors() -> None:
             assert names[0] == "linkjaw0_outer0" and all(j == "hinge" for j in joints)
             kinds.add("linkage")
     assert kinds == {"bare", "slides", "hinges", "jaw", "linkage"} and flanges == {0, 1, 2}
+
+
+def test_procedural_bodies_do_not_pass_through_each_other() -> None:
+    # legs crossing under a quadruped (inward knees), arms hanging through a humanoid's hips,
+    # a mobile manipulator's arm through its column or head: overlaps away from joints
+    off = {s: attachment(procedural_spec(s)).off_joint_pairs for s in range(100)}
+    assert sum(v > 0 for v in off.values()) <= 1, {s: v for s, v in off.items() if v}

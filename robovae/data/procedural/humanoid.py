@@ -6,7 +6,8 @@ ankle pitch (y) and usually an ankle roll (x), in that order or roll first (``an
 with a flat box foot, rarely a toe hinge. With probability ``upper_body`` a waist of 0-3
 hinges (``z``, ``z y``, ``z x y``) holds the torso (0: the torso is part of the pelvis); the
 torso carries a neck of 0-3 hinges with a head and two arms of 3-7 hinges (``arm_axes``:
-shoulder, then elbow and wrist). Arms with a wrist (5+ hinges) end in nothing, a gripper or
+shoulder, then elbow and wrist); an arm long enough to hang beside the pelvis leans out so
+that it clears the pelvis and hips. Arms with a wrist (5+ hinges) end in nothing, a gripper or
 a hand of 3-5 fingers; both hands follow one drawn plan.
 
 Real files compose these parts in a few ways (``layout``): the pelvis is the root and lists
@@ -77,6 +78,21 @@ def _leg(s: Sampler, pelvis: Part, side: str, sy: float, anchor: tuple, p: dict)
     return pelvis.children[first]
 
 
+def _lean(start: tuple[float, float], upper: float, fore_drop: float, clear: float) -> float:
+    """How far (m) the upper arm leans out over its length ``upper``: 10 % of it, or more
+    where the arm would hang through the pelvis and hips. ``start``: the upper arm's start,
+    out from the middle and above the pelvis's top; ``fore_drop``: how far the forearm hangs
+    below the elbow; ``clear``: how far out from the middle the arm clears the pelvis and the
+    hips. The line from the start to the elbow crosses the pelvis's top at ``y ≥ clear``
+    (capped at 45°)."""
+    out, above = start
+    lean = 0.1 * upper
+    if upper + fore_drop <= above or out + lean >= clear:
+        return lean  # the arm ends above the pelvis, or hangs clear of it already
+    share = min(above / upper, 1.0)  # of the upper arm above the pelvis's top
+    return upper if share <= 0 else min(max((clear - out) / share, lean), upper)
+
+
 def _arm(s: Sampler, torso: Part, side: str, sy: float, anchor: tuple, p: dict) -> Part:
     """One arm of pattern ``p["arm"]`` (``<shoulder axes>-<elbow and wrist axes>``): short
     shoulder bodies, the last one spanning the upper arm, the elbow body spanning the forearm,
@@ -89,7 +105,10 @@ def _arm(s: Sampler, torso: Part, side: str, sy: float, anchor: tuple, p: dict) 
     d = (math.sin(p["elbow"]), 0.0, -math.cos(p["elbow"]))
     wrist = 0.03 * scale
     vecs = [(0.0, sy * g, 0.0), (0.0, 0.0, -g)][: len(shoulder) - 1]
-    vecs += [(0.0, sy * 0.1 * ua, -ua), (fa * d[0], 0.0, fa * d[2])]
+    start = (anchor[1] * sy + (g if len(shoulder) > 1 else 0.0),  # upper arm's start:
+             p["hip_top"] - (g if len(shoulder) > 2 else 0.0))  # out, above the pelvis top
+    vecs += [(0.0, sy * _lean(start, ua, fa * abs(d[2]), p["hip_clear"]), -ua),
+             (fa * d[0], 0.0, fa * d[2])]
     vecs += [(d[0] * wrist, 0.0, d[2] * wrist)] * (len(rest) - 1)
     masses = [0.012] * (len(shoulder) - 1) + [0.025, 0.015] + [0.004] * (len(rest) - 1)
     links: list[Link] = []
@@ -154,14 +173,17 @@ def sample(s: Sampler) -> tuple[Part, bool]:
     height, tw = s.u("torso_height"), s.u("torso_half_width")
     holder = pelvis
     pos = (0.0, 0.0, rp)
+    z = 0.0  # height of the torso's frame above the pelvis's
     for k, ax in enumerate(_WAIST_AXES[int(s.pick("waist_hinges"))]):
         holder = holder.add(Part(f"waist{k}", pos, [s.hinge(ax, (-0.8, 0.8), gear=AUTO)]))
+        z += pos[2]
         pos = (0.0, 0.0, 0.03)
         holder.geoms.append(capsule((0.0, 0.0, 0.0), pos, 0.5 * tw, 0.02 * M))
     base = pos
     torso = holder
     if welded and s.p("torso_link"):  # a welded torso body above the waist joint (n1)
         torso = holder.add(Part("torso", pos))
+        z += pos[2]
         base = (0.0, 0.0, 0.0)
     top = (base[0], base[1], base[2] + height)
     torso.geoms.append(capsule(base, top, 0.6 * tw, 0.3 * M))
@@ -173,7 +195,11 @@ def sample(s: Sampler) -> tuple[Part, bool]:
         wrist = len(p["arm"]) - 1 >= 5  # hinges: the pattern without its '-'
         p["hand"] = _hand(s, scale) if wrist else None
         p["end_effector"] = welded and s.p("end_effector")
-        arms = [_arm(s, torso, side, sy, (0.0, sy * tw, top[2] - 0.1 * height), p)
+        shoulder_z = top[2] - 0.1 * height
+        ra = 0.045 * scale  # the arm's thickest radius, and a margin
+        p["hip_top"] = z + shoulder_z - rp - ra  # the pelvis's top under the shoulder
+        p["hip_clear"] = max(pw + rp, 0.7 * pw + 0.5 * p["gap"] + p["r"]) + 1.2 * ra
+        arms = [_arm(s, torso, side, sy, (0.0, sy * tw, shoulder_z), p)
                 for side, sy in (("left", 1.0), ("right", -1.0))]
     head: Part = torso
     neck_top = top

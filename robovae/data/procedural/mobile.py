@@ -77,12 +77,15 @@ def sample(s: Sampler) -> tuple[Part, bool]:
     neck.geoms.append(Geom("box", 1.5, pos=(0.05, 0.0, top[2] + 0.07), half=(0.08, 0.1, 0.07)))
     arm = s.section("arm")
     plan = sample_arm(arm, hinges=hinges)  # two arms mirror one plan (tiago_dual)
+    # the arm's first link rises beside the column (out by its radius), its top below the
+    # column's top and the head, so that the upper arm reaches out clear of both
+    out = 0.5 * wy + plan.radius
+    z_arm = max(0.3 * column, min(0.8 * column, column - plan.links[0][1] - 2.0 * plan.radius))
     if n_arms == 1:
-        build_arm(arm, plan, torso, "arm_", (0.5 * wy, 0.0, 0.8 * column), (1.0, 0.0, 0.0))
+        build_arm(arm, plan, torso, "arm_", (out, 0.0, z_arm), (1.0, 0.0, 0.0))
     else:
         for side, sy in (("left", 1.0), ("right", -1.0)):
-            build_arm(arm, plan, torso, f"arm_{side}_", (0.0, sy * 0.5 * wy, 0.8 * column),
-                      (0.0, sy, 0.0))
+            build_arm(arm, plan, torso, f"arm_{side}_", (0.0, sy * out, z_arm), (0.0, sy, 0.0))
     if not head_first and neck is not torso:  # the head after the arms
         torso.children.append(torso.children.pop(0))
     return base, True

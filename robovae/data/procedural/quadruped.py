@@ -4,7 +4,8 @@ Each leg: a hip body on an abduction hinge (x) whose capsule reaches sideways to
 axis, a thigh on a flexion hinge (y) tilted ``thigh_tilt`` from vertical, a calf on a knee
 hinge (y) that brings the foot sphere back under the hip; the foot is at least 1.5 times as
 thick as the calf, so it is the lowest point. Knees point back, front, inward
-(front back, rear front) or outward. The tree is the 26-node quadruped of real robots: free
+(front back, rear front: the tilt is capped so that the front and rear thighs do not cross
+under the torso) or outward. The tree is the 26-node quadruped of real robots: free
 joint, torso, 4 × (3 hinges + 3 bodies), and with probability 0.2 one or two welded sensor
 bodies on the torso, listed before the legs (barkour_vb) or after them (``sensor_slot``).
 """
@@ -38,6 +39,9 @@ def sample(s: Sampler) -> tuple[Part, bool]:
     total = m_torso + 4 * (sum(masses) + 0.1 * masses[2])
     load = 0.25 * total * G * (thigh + calf)  # a quarter of the weight at a leg's length
     x_hip = 0.85 * lx
+    if knees == "inward":  # front and rear knees meet under the torso: keep them apart
+        reach = max(x_hip - 1.25 * 0.8 * radius, 0.0) / thigh
+        tilt = min(tilt, math.asin(min(reach, 1.0)))
     for name, fx, sy in (("FL", 1, 1), ("FR", 1, -1), ("RL", -1, 1), ("RR", -1, -1)):
         kd = {"back": 1.0, "front": -1.0, "inward": float(fx), "outward": float(-fx)}[knees]
         hip = torso.add(Part(f"{name}_hip", (fx * x_hip, sy * wy, 0.0),
