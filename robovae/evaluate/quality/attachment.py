@@ -52,7 +52,7 @@ class AttachResult:
     detached_bodies: list[str] = field(default_factory=list)
     penetration: float = 0.0  # deepest overlap between non-adjacent bodies, m
     penetrating_pairs: int = 0  # geom pairs overlapping deeper than tolerance · extent
-    off_joint_pairs: int = 0  # of those, pairs whose overlap holds no joint of their path
+    off_joint_pairs: int = 0  # of those, pairs whose tree path is longer than they are thick
     extent: float = 0.0  # m
     gaps: dict[int, float] = field(default_factory=dict)  # body id -> gap to its parent, m
 

@@ -14,8 +14,9 @@ model, :func:`~robovae.evaluate.quality.stage.stage_compiled`), and runs on that
 - ``judged``, ``detached``, ``all_attached``, ``detached_share``: bodies judged / detached
   (:mod:`~robovae.evaluate.quality.attachment`); ``penetration``: deepest self-penetration at
   rest over the extent; ``self_penetrating``: a contact deeper than 1 % of the extent;
-  ``penetrating_off_joint``: such a contact whose overlap holds no joint of the path between
-  the two bodies (bodies passing through each other, not links meeting at a joint);
+  ``penetrating_off_joint``: such a contact between bodies whose tree path is longer than
+  their geoms are thick together (bodies passing through each other, not links meeting at a
+  cluster of joints: the attachment module's docstring);
 - ``floating``, ``stands``, ``fell_at``, ``stand_tilt``: the standing test
   (:mod:`~robovae.evaluate.quality.standing`; ``stands`` None when not floating);
 - ``gait_speed`` (extents/s), ``gait_speed_m_s``: with ``locomotion``, the best gait
