@@ -281,8 +281,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--out holds robots of another checkpoint/seed: delete them first")
     g.add_argument("--mirror-limbs", action=argparse.BooleanOptionalAction, default=True,
                    help="near-mirror limb pairs on the trunk become exact mirror images, a "
-                        "stray limb beside them gets its mirror image, and near-equal limbs on "
-                        "the sagittal plane become equal")
+                        "stray limb beside them gets its mirror image, near-equal limbs on "
+                        "the sagittal plane become equal, and near-mirror branches below the "
+                        "trunk (a chest's arms) mirror images")
     g.add_argument("--stance", action=argparse.BooleanOptionalAction, default=True,
                    help="a free-floating robot's hanging wheels are lowered onto the floor, its "
                    "soles laid flat, and a robot on two feet gets its stilts stood on their "

@@ -66,7 +66,13 @@ def axes_to_quats(axes: np.ndarray) -> np.ndarray:
 
 
 def mirror_axes(axes: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """The axis matrix of the mirror image of a box, ``M A M`` for the reflection
-    ``M = diag(m)`` (``m`` of ±1)."""
-    return np.asarray(axes, float) * np.asarray(m, float)[list(_I)] * \
-        np.asarray(m, float)[list(_J)]
+    """The axis matrix of the mirror image of a box, ``M A M`` for the reflection ``M``:
+    ``diag(m)`` when ``m`` is a vector of ±1, else the symmetric orthogonal ``3 × 3`` matrix
+    ``m`` (a reflection across any plane through the origin, ``I - 2 n nᵀ``)."""
+    m = np.asarray(m, float)
+    if m.ndim == 1:
+        return np.asarray(axes, float) * m[list(_I)] * m[list(_J)]
+    a = np.zeros((3, 3))
+    a[_I, _J] = axes
+    a[_J, _I] = axes
+    return (m @ a @ m)[_I, _J]

@@ -3,9 +3,11 @@ that are not validity rules, each reported by name when it changes the graph.
 
 1. ``floating_base`` (``floating``): a root that is a single joint becomes a free joint
    (:func:`robovae.generate.rules.floating_base`);
-2. ``mirror_limbs``, ``complete_pairs`` and ``twin_limbs`` (``mirror``): near-mirror limb
-   pairs become exact mirror images, a stray limb beside them gets its mirror image, near-equal
-   limbs on the sagittal plane become equal (:mod:`robovae.generate.symmetry`);
+2. ``mirror_limbs``, ``complete_pairs``, ``twin_limbs`` and ``mirror_branches``
+   (``mirror``): near-mirror limb pairs become exact mirror images, a stray limb beside them
+   gets its mirror image, near-equal limbs on the sagittal plane become equal, near-mirror
+   branches of a link on the sagittal plane (a chest's arms) become exact mirror images
+   (:mod:`robovae.generate.symmetry`);
 3. ``slide_limited`` (always, last: a mirrored limb carries its partner's joints): a slide
    joint off the trunk without limits gets a 5 cm stroke either way
    (:func:`robovae.generate.rules.slide_limited`).
@@ -27,7 +29,7 @@ from robovae.data.features import FeatureSet
 from robovae.data.graph import RobotData, tree_data
 from robovae.data.tree_arrays import TreeArrays
 from robovae.generate.rules import floating_base, slide_limited
-from robovae.generate.symmetry import complete_pairs, mirror_limbs, twin_limbs
+from robovae.generate.symmetry import complete_pairs, mirror_branches, mirror_limbs, twin_limbs
 
 __all__ = ["decoded_fixes"]
 
@@ -53,7 +55,7 @@ def decoded_fixes(graph: TreeArrays | RobotData, feature_set: str | FeatureSet,
     fixes: list[str] = []
     steps = ([("floating_base", floating_base)] if floating else []) + \
         ([("mirror_limbs", mirror_limbs), ("complete_pairs", complete_pairs),
-          ("twin_limbs", twin_limbs)] if mirror else []) \
+          ("twin_limbs", twin_limbs), ("mirror_branches", mirror_branches)] if mirror else []) \
         + [("slide_limited", slide_limited)]
     start = arrays = TreeArrays.of(graph)
     for name, fix in steps:

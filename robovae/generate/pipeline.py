@@ -266,7 +266,9 @@ def generate(
     reported as ``mirror_limbs``), a stray limb beside them gets its mirror image
     (:func:`~robovae.generate.symmetry.complete_pairs`, reported as ``complete_pairs``) and
     near-equal limbs on the sagittal plane become equal
-    (:func:`~robovae.generate.symmetry.twin_limbs`, reported as ``twin_limbs``).
+    (:func:`~robovae.generate.symmetry.twin_limbs`, reported as ``twin_limbs``) and the
+    near-mirror branches of a link below the trunk (a chest's arms) mirror images
+    (:func:`~robovae.generate.symmetry.mirror_branches`, reported as ``mirror_branches``).
     ``quality``: measure every valid robot (attached, symmetric, standing;
     :func:`~robovae.evaluate.quality.measure.robot_quality`). ``controls``: the validation's
     simulation, ``"held"`` (the first second of the standing test) or ``"zero"``
@@ -413,9 +415,11 @@ def write_records(model: RoboVAE, indices: Sequence[int], z: torch.Tensor,
     this process). With ``floating``, a robot whose root is a single joint gets a floating
     base (:func:`~robovae.generate.rules.floating_base`, listed as ``floating_base``); with
     ``mirror``, near-mirror limb pairs are mirrored, stray limbs paired and twins on the plane
-    made equal (:func:`~robovae.generate.symmetry.mirror_limbs`,
+    made equal, and near-mirror branches of a link below the trunk (a chest's arms) mirrored
+    (:func:`~robovae.generate.symmetry.mirror_limbs`,
     :func:`~robovae.generate.symmetry.complete_pairs`, :func:`~robovae.generate.symmetry.
-    twin_limbs`, listed as ``mirror_limbs``, ``complete_pairs``, ``twin_limbs``); with
+    twin_limbs`, :func:`~robovae.generate.symmetry.mirror_branches`, listed as
+    ``mirror_limbs``, ``complete_pairs``, ``twin_limbs``, ``mirror_branches``); with
     ``quality`` (and ``validate``), every valid robot's quality measures go into its record
     under ``quality``; ``controls``: the validation's simulation
     (:mod:`robovae.generate.validate`); ``stance``: the writer's stance rules

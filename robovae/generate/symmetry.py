@@ -36,6 +36,13 @@ topology of a paired limb and lies as far off the plane as those pairs (``|p_y| 
 limb, attached at ``M p`` right after it. The training robots pair their limbs off the plane
 (0 of 1,000 procedural robots changed); no zoo or Menagerie robot is changed.
 
+**Branches below the trunk** (:func:`mirror_branches`, reported as ``mirror_branches``): the
+same mirroring for the children of a link below the trunk (a chest's arms, a mobile base's
+column with two arms), across the trunk's sagittal plane as that link's frame sees it, for
+pairs whose attachments lie on both sides of the plane (a hand's fingers never). A decoded
+humanoid's arms hang off its chest, not off the trunk, and came out unequal: one leaning
+clear of the hips, the other through them (docs/generation.md).
+
 **Twins on the plane** (:func:`twin_limbs`, reported as ``twin_limbs``): two limbs that both lie
 on the sagittal plane, of the same topology, not already a mirrored pair, whose total lengths
 and masses differ by a factor whose product is at most :data:`SIZE_RATIO` ``²`` (a front and a
@@ -50,11 +57,12 @@ casters differ is a decoding error, not a design.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from robovae.data.box_axes import mirror_axes
+from robovae.data.box_axes import mirror_axes, quat_rotations
 from robovae.data.features import JOINT, LINK, FeatureSet
 from robovae.data.graph import tree_data
 from robovae.data.tree_arrays import RobotTree, TreeArrays
@@ -62,7 +70,7 @@ from robovae.generate.bodies import subtree, trunk
 from robovae.generate.graph_view import GraphView, as_feature_set, node_mask, norm
 
 __all__ = ["ATTACH_TOL", "MIRROR_TOL", "STRAY_TOL", "complete_pairs", "is_symmetric", "limbs",
-           "mirror_limbs", "mirrored_pairs", "twin_limbs"]
+           "mirror_branches", "mirror_limbs", "mirrored_pairs", "twin_limbs"]
 
 #: Relative tolerance on lengths and masses of a mirrored pair.
 MIRROR_TOL = 0.10
@@ -157,9 +165,30 @@ def _first_link(v: GraphView, nodes: list[int]) -> int:
     return next((n for n in nodes if v.types[n] == LINK), -1)
 
 
-def _planned_pairs(v: GraphView, limb: dict[int, list[int]]) -> list[tuple[int, int]]:
-    """Near-mirror pairs ``(source, replaced)`` of the limbs ``limb`` (root: nodes), best first
-    (module docstring)."""
+@dataclass(frozen=True)
+class _Plane:
+    """The robot's sagittal plane seen from a link's frame: ``x -> h x + offset`` reflects a
+    point of that frame across it (``h`` a ``3 × 3`` reflection; the trunk's: ``diag(1, -1,
+    1)``, no offset)."""
+
+    h: np.ndarray
+    offset: np.ndarray
+
+    def mirror(self, p: np.ndarray) -> np.ndarray:
+        return self.h @ p + self.offset
+
+    def off(self, p: np.ndarray) -> bool:
+        """``p`` lies off the plane: its distance to it above ``ATTACH_TOL |p|``."""
+        return bool(0.5 * norm(p - self.mirror(p)) > ATTACH_TOL * max(norm(p), 1e-9))
+
+
+_TRUNK = _Plane(np.diag(_M), np.zeros(3))
+
+
+def _planned_pairs(v: GraphView, limb: dict[int, list[int]], plane: _Plane = _TRUNK
+                   ) -> list[tuple[int, int]]:
+    """Near-mirror pairs ``(source, replaced)`` of the limbs ``limb`` (root: nodes) of a link
+    whose frame sees the sagittal plane as ``plane``, best first (module docstring)."""
     roots = list(limb)
     info = {}
     for r in roots:
@@ -167,7 +196,7 @@ def _planned_pairs(v: GraphView, limb: dict[int, list[int]]) -> list[tuple[int, 
         if f >= 0:
             p = np.asarray(v.get(f, "link.pos"), dtype=float)
             lengths, masses = _profile(v, limb[r])
-            off = _off_plane(p)
+            off = plane.off(p)
             info[r] = (p, len(lengths), float(lengths.sum()) + 1e-9,
                        float(masses.sum()) + 1e-9, off)
     cands = []
@@ -182,7 +211,7 @@ def _planned_pairs(v: GraphView, limb: dict[int, list[int]]) -> list[tuple[int, 
             if size_gap > 2.0 * np.log(SIZE_RATIO):
                 continue
             scale = max(norm(pa), norm(pb), 1e-9)
-            score = norm(_M * pa - pb) / scale + size_gap
+            score = norm(plane.mirror(pa) - pb) / scale + size_gap
             cands.append((score, a, b) if off_a else (score, b, a))
     used: set[int] = set()
     pairs = []
@@ -201,9 +230,9 @@ def _plan(data: RobotTree, feature_set: str | FeatureSet
     return v, limb, _planned_pairs(v, limb)
 
 
-def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
+def _mirror_row(v: GraphView, row: np.ndarray, node_type: int, m: np.ndarray) -> np.ndarray:
+    """A node's features mirrored by the reflection ``m`` of its frame (module docstring)."""
     out = row.copy()
-    m = _M
 
     def put(key: str, fn: Callable[[np.ndarray], np.ndarray]) -> None:
         if v.has(key):
@@ -212,13 +241,13 @@ def _mirror_row(v: GraphView, row: np.ndarray, node_type: int) -> np.ndarray:
 
     if node_type == LINK:
         for key in ("link.pos", "link.ipos", "link.box_pos"):
-            put(key, lambda p: m * p)
+            put(key, lambda p: m @ p)
         for key in ("link.quat", "link.iquat"):
-            put(key, lambda q: np.concatenate([q[:1], -m * q[1:]]))
+            put(key, lambda q: np.concatenate([q[:1], -(m @ q[1:])]))
         put("link.box_axes", lambda a: mirror_axes(a, m))
     elif node_type == JOINT:
-        put("joint.pos", lambda p: m * p)
-        put("joint.axis", lambda a: -m * a)
+        put("joint.pos", lambda p: m @ p)
+        put("joint.axis", lambda a: -(m @ a))
     return out
 
 
@@ -235,7 +264,7 @@ def mirror_limbs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
     v, _, plan = _plan(data, feature_set)
     if not plan:
         return data, False
-    return _rebuild(data, v, {b: a for a, b in plan}, set())
+    return _rebuild(data, v, {b: (a, _TRUNK) for a, b in plan}, set())
 
 
 def complete_pairs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
@@ -316,13 +345,89 @@ def twin_limbs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
     return _rebuild(data, v, {}, set(), copy, limb)
 
 
-def _rebuild(data: RobotTree, v: GraphView, replace: dict[int, int], twin: set[int],
-             copy: dict[int, int] | None = None, limb: dict[int, list[int]] | None = None
-             ) -> tuple[RobotTree, bool]:
-    """The graph with the trunk's child ``b`` replaced by the mirror image of ``replace[b]``,
-    each child in ``twin`` followed by its own mirror image, and the child ``b`` replaced by a
-    copy of ``copy[b]`` attached where ``b`` was (its first link's ``link.pos``; ``limb``: the
-    limbs' nodes); ``(graph, changed)``, the graph of ``data``'s kind
+def _link_frames(v: GraphView, t: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Position and rotation, in the frame of the trunk link ``t``, of every link below it at
+    rest (joints at zero): ``link.pos`` and ``link.quat`` composed down the tree."""
+    frames = {t: (np.zeros(3), np.eye(3))}
+    for n in subtree(v.kids, t)[1:]:
+        if v.types[n] != LINK:
+            continue
+        up = v.parent[n]
+        while v.types[up] != LINK:
+            up = v.parent[up]
+        p0, r0 = frames[up]
+        q = np.asarray(v.get(n, "link.quat"), float) if v.has("link.quat") else np.zeros(4)
+        r = quat_rotations(q / norm(q))[0] if norm(q) > 1e-9 else np.eye(3)
+        frames[n] = (p0 + r0 @ np.asarray(v.get(n, "link.pos"), float), r0 @ r)
+    return frames
+
+
+def _is_mirror(v: GraphView, a: list[int], b: list[int], plane: _Plane) -> bool:
+    """The branch of nodes ``b`` is already the mirror image of ``a`` (to float32 rounding)."""
+    if _shape(v, a[0]) != _shape(v, b[0]):
+        return False
+    want = np.stack([_mirror_row(v, v.x[n], v.types[n], plane.h) for n in a])
+    want[a.index(_first_link(v, a)), v.fs.slice("link.pos")] += plane.offset
+    return bool(np.allclose(want, v.x[b], rtol=1e-5, atol=1e-6))
+
+
+def mirror_branches(data: RobotTree, feature_set: str | FeatureSet = "paper34"
+                    ) -> tuple[RobotTree, bool]:
+    """:func:`mirror_limbs` for the branches of the links below the trunk that lie on the
+    sagittal plane: a chest's arms, a mobile base's column with two arms, a head's ears.
+
+    A link ``h`` below the trunk at ``p_h`` with rotation ``R_h`` (trunk frame, at rest) sees
+    the trunk's sagittal plane as the reflection ``x -> H x + c`` of its own frame,
+    ``H = R_hᵀ M R_h`` and ``c = R_hᵀ (M - I) p_h``. Its children holding a joint are its
+    *branches*; their near-mirror pairs (the rule of :func:`mirror_limbs`, with that
+    reflection) whose attachments lie on both sides of the plane (a hand's two fingers do
+    not) are made exact mirror images: the second is replaced by the first reflected by ``H``,
+    attached at ``H p_A + c``, so that the pair is symmetric about the robot's plane even when
+    the decoded chest sits beside it. Pairs that already are, to float32 rounding, and branches
+    inside a pair of another link are left as they are (a generation choice reported as
+    ``mirror_branches``; run after :func:`mirror_limbs`).
+
+    Returns:
+        ``(data, changed)``: the new graph (``data`` itself when no pair was found) and whether
+        a feature or the tree changed.
+    """
+    v = GraphView(data, as_feature_set(feature_set))
+    t = trunk(v.types, v.kids) if v.nodes(LINK) else -1
+    if t < 0:
+        return data, False
+    frames = _link_frames(v, t)
+    replace: dict[int, tuple[int, _Plane]] = {}
+    claimed: set[int] = set()  # the nodes of branches already paired
+    for h, (p_h, r_h) in frames.items():
+        if h == t or h in claimed:
+            continue
+        branch = {c: subtree(v.kids, c) for c in v.kids[h]}
+        branch = {c: sub for c, sub in branch.items() if any(v.types[n] == JOINT for n in sub)}
+        if len(branch) < 2:
+            continue
+        plane = _Plane(r_h.T @ np.diag(_M) @ r_h, r_h.T @ ((_M - 1.0) * p_h))
+        # each branch's attachment's y in the trunk frame
+        side = {c: float((p_h + r_h @ v.get(_first_link(v, sub), "link.pos"))[1])
+                for c, sub in branch.items()}
+        for a, b in _planned_pairs(v, branch, plane):
+            if side[a] * side[b] >= 0.0:
+                continue  # not on both sides of the plane: a hand's fingers, a foot's toes
+            claimed |= set(branch[a]) | set(branch[b])
+            if not _is_mirror(v, branch[a], branch[b], plane):
+                replace[b] = (a, plane)
+    if not replace:
+        return data, False
+    return _rebuild(data, v, replace, set())
+
+
+def _rebuild(data: RobotTree, v: GraphView, replace: dict[int, tuple[int, _Plane]],
+             twin: set[int], copy: dict[int, int] | None = None,
+             limb: dict[int, list[int]] | None = None) -> tuple[RobotTree, bool]:
+    """The graph with the child ``b`` of a link replaced by the mirror image of ``a`` across
+    ``plane`` (``replace[b] = (a, plane)``, the plane as the link's frame sees it), each child
+    of the trunk in ``twin`` followed by its own mirror image, and the child ``b`` replaced by
+    a copy of ``copy[b]`` attached where ``b`` was (its first link's ``link.pos``; ``limb``:
+    the limbs' nodes); ``(graph, changed)``, the graph of ``data``'s kind
     (:class:`~robovae.data.tree_arrays.TreeArrays` or PyG)."""
     parent: list[int] = []
     types: list[int] = []
@@ -330,27 +435,33 @@ def _rebuild(data: RobotTree, v: GraphView, replace: dict[int, int], twin: set[i
     copy = copy or {}
     attach = v.fs.slice("link.pos")
 
-    def emit(i: int, new_parent: int, mirrored: bool) -> None:
+    def emit(i: int, new_parent: int, h: np.ndarray | None) -> None:
         me = len(types)
         parent.append(new_parent)
         types.append(v.types[i])
-        rows.append(_mirror_row(v, v.x[i], v.types[i]) if mirrored else v.x[i])
+        rows.append(_mirror_row(v, v.x[i], v.types[i], h) if h is not None else v.x[i])
         for c in v.kids[i]:
-            if not mirrored and c in replace:
-                emit(replace[c], me, True)
-            elif not mirrored and c in copy:
+            if h is None and c in replace:
+                a, plane = replace[c]
                 start = len(types)
-                emit(copy[c], me, False)
+                emit(a, me, plane.h)
+                if np.any(plane.offset):  # the attachment, in the frame of the link it hangs on
+                    first = start + subtree(v.kids, a).index(_first_link(v, subtree(v.kids, a)))
+                    rows[first] = rows[first].copy()
+                    rows[first][attach] += plane.offset
+            elif h is None and c in copy:
+                start = len(types)
+                emit(copy[c], me, None)
                 assert limb is not None  # given with copy
                 first = start + limb[copy[c]].index(_first_link(v, limb[copy[c]]))
                 rows[first] = rows[first].copy()
                 rows[first][attach] = v.x[_first_link(v, limb[c])][attach]
             else:
-                emit(c, me, mirrored)
-            if not mirrored and c in twin:
-                emit(c, me, True)
+                emit(c, me, h)
+            if h is None and c in twin:
+                emit(c, me, _TRUNK.h)
 
-    emit(0, -1, False)
+    emit(0, -1, None)
     x = np.where(node_mask(v.fs, types), np.stack(rows).astype(np.float32), np.float32(0))
     changed = (parent != v.parent or types != v.types
                or not np.array_equal(x, TreeArrays.of(data).x))

@@ -58,3 +58,20 @@ def test_mirror_axes_is_the_mirrored_box():
         got = mirror_axes(quat_to_axes(q[None])[0], m)
         np.testing.assert_allclose(got, want[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]],
                                    atol=1e-12)
+
+
+def test_mirror_axes_across_any_plane():
+    rng = np.random.default_rng(5)
+    for q in _random_quats(20, seed=6):
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        h = np.eye(3) - 2.0 * np.outer(n, n)
+        r = quat_rotations(q[None])[0]
+        u1, u3 = h @ r[:, 0], h @ r[:, 2]
+        want = np.outer(u1, u1) - np.outer(u3, u3)
+        got = mirror_axes(quat_to_axes(q[None])[0], h)
+        np.testing.assert_allclose(got, want[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]],
+                                   atol=1e-12)
+    a = quat_to_axes(_random_quats(1, seed=7))[0]  # diag(m) and its matrix agree
+    m = np.array([1.0, -1.0, 1.0])
+    np.testing.assert_allclose(mirror_axes(a, np.diag(m)), mirror_axes(a, m), atol=1e-15)

@@ -262,3 +262,76 @@ def test_decoded_fixes_give_the_same_robot_from_a_graph_and_from_its_arrays():
         assert out.name == arrays.name == graph.name
         assert set(out.keys()) == set(graph.keys())
     assert decoded_fixes(g, FS, floating=False) == (g, [])  # nothing to fix: the graph itself
+
+
+def _humanoid_with_unequal_arms():
+    """A procedural humanoid (arms on a chest below the pelvis's waist) whose right arm is
+    moved, made heavier and its hinges turned, and whose chest sits 3 cm to the left and turned
+    15° about z: a decoder's arms, which ``mirror_limbs`` (the trunk's limbs) does not reach."""
+    from robovae.data.graph import tree_data
+    from robovae.data.procedural import procedural_plan
+    from robovae.generate.bodies import subtree
+
+    seed = next(s for s in range(100) if procedural_plan(s).kind == "humanoid"
+                and len(limbs(GraphView(model_to_graph(procedural_spec(s).compile(),
+                                                       "paper34"), FS))[1]) == 3)
+    g = model_to_graph(procedural_spec(seed).compile(), "paper34", name="humanoid")
+    v = GraphView(g, FS)
+    def side(c: int) -> float:  # y of a branch's first link in its link's frame
+        return float(v.get(next(k for k in subtree(v.kids, c) if v.types[k] == LINK),
+                           "link.pos")[1])
+
+    hub = next(n for n in range(g.num_nodes) if v.types[n] == LINK and n != limbs(v)[0]
+               and len(v.kids[n]) >= 2 and side(v.kids[n][-2]) > 0.05 > -0.05 > side(v.kids[n][-1]))
+    left, right = v.kids[hub][-2:]
+    x = g.x.clone()
+    first = next(n for n in subtree(v.kids, right) if v.types[n] == LINK)
+    x[first, FS.slice("link.pos")] += torch.tensor([0.03, -0.02, 0.05])
+    x[subtree(v.kids, right), FS.slice("link.mass")] *= 1.3
+    joints = [n for n in subtree(v.kids, right) if v.types[n] != LINK]
+    x[joints[0], FS.slice("joint.axis")] = torch.tensor([0.6, 0.0, 0.8])
+    x[hub, FS.slice("link.pos")] += torch.tensor([0.0, 0.03, 0.0])
+    c, s = np.cos(np.radians(7.5)), np.sin(np.radians(7.5))
+    x[hub, FS.slice("link.quat")] = torch.tensor([c, 0.0, 0.0, s])
+    return tree_data(g.parent, g.node_type, x, FS, name="humanoid"), hub, left, right
+
+
+def test_a_chest_with_unequal_arms_gets_mirrored_arms():
+    from robovae.generate.bodies import subtree
+    from robovae.generate.symmetry import mirror_branches
+
+    g, hub, left, right = _humanoid_with_unequal_arms()
+    g = mirror_limbs(g)[0]  # the trunk's limbs, the legs (the arms are not among them)
+    assert mirror_limbs(g)[0] is g
+    out, changed = mirror_branches(g, FS)
+    assert changed and out.num_nodes == g.num_nodes
+    assert torch.equal(out.x[subtree(GraphView(g, FS).kids, left)],
+                       g.x[subtree(GraphView(g, FS).kids, left)])  # the first arm as decoded
+    assert mirror_branches(out, FS) == (out, False)  # nothing left to mirror
+    # written, each right-arm body sits at the mirror image of its left twin across the
+    # pelvis's sagittal plane (not the turned chest's), at rest and with equal hinge angles
+    model = graph_to_spec(out, "paper34", clearance=None)[0].compile()
+    v = GraphView(out, FS)
+    links = [i for i, t in enumerate(v.types) if t == LINK]
+    body = {i: b for b, i in enumerate(links, start=1)}
+    arms = [[n for n in subtree(v.kids, c) if v.types[n] == LINK] for c in v.kids[hub][-2:]]
+    data = mujoco.MjData(model)
+    for k in range(2):
+        for a, b in zip(*arms):
+            ja, jb = model.body_jntadr[body[a]], model.body_jntadr[body[b]]
+            for j in range(model.body_jntnum[body[a]]):
+                data.qpos[model.jnt_qposadr[ja + j]] = 0.3 * k * (j + 1)
+                data.qpos[model.jnt_qposadr[jb + j]] = 0.3 * k * (j + 1)
+        mujoco.mj_forward(model, data)
+        t = body[limbs(v)[0]]
+        rot, origin = data.xmat[t].reshape(3, 3), data.xpos[t]
+        for a, b in zip(*arms):
+            pa, pb = (rot.T @ (data.xpos[body[n]] - origin) for n in (a, b))
+            assert np.allclose(pa * [1, -1, 1], pb, atol=1e-5), (k, a, b)
+
+
+def test_decoded_fixes_mirror_a_chests_arms():
+    g = _humanoid_with_unequal_arms()[0]
+    out, fixes = decoded_fixes(g, FS, floating=False)
+    assert "mirror_branches" in fixes
+    assert decoded_fixes(out, FS, floating=False)[1] == []
