@@ -6,7 +6,8 @@ that are not validity rules, each reported by name when it changes the graph.
 2. ``mirror_limbs``, ``complete_pairs``, ``twin_limbs`` and ``mirror_branches``
    (``mirror``): near-mirror limb pairs become exact mirror images, a stray limb beside them
    gets its mirror image, near-equal limbs on the sagittal plane become equal, near-mirror
-   branches of a link on the sagittal plane (a chest's arms) become exact mirror images
+   branches of a link below the trunk on both sides of the plane (a chest's arms) become exact
+   mirror images
    (:mod:`robovae.generate.symmetry`);
 3. ``slide_limited`` (always, last: a mirrored limb carries its partner's joints): a slide
    joint off the trunk without limits gets a 5 cm stroke either way

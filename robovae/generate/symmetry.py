@@ -155,11 +155,6 @@ def is_symmetric(data: RobotTree, feature_set: str | FeatureSet = "paper34") -> 
     return pairs >= 1 and n - 2 * pairs <= 1
 
 
-def _off_plane(p: np.ndarray) -> bool:
-    """An attachment ``p`` off the sagittal plane: ``|p_y| > ATTACH_TOL |p|``."""
-    return bool(abs(p[1]) > ATTACH_TOL * max(norm(p), 1e-9))
-
-
 def _first_link(v: GraphView, nodes: list[int]) -> int:
     """The first link among a limb's ``nodes``, else -1."""
     return next((n for n in nodes if v.types[n] == LINK), -1)
@@ -299,7 +294,7 @@ def complete_pairs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
         if r in paired or f < 0 or _shape(v, r) not in reach:
             continue
         p = np.asarray(v.get(f, "link.pos"), dtype=float)
-        if _off_plane(p) and abs(p[1]) >= STRAY_TOL * reach[_shape(v, r)]:
+        if _TRUNK.off(p) and abs(p[1]) >= STRAY_TOL * reach[_shape(v, r)]:
             stray.add(r)
     if not stray:
         return data, False
@@ -322,7 +317,7 @@ def twin_limbs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
     info = {}
     for r, nodes in limb.items():
         f = _first_link(v, nodes)
-        if f >= 0 and not _off_plane(np.asarray(v.get(f, "link.pos"), dtype=float)):
+        if f >= 0 and not _TRUNK.off(np.asarray(v.get(f, "link.pos"), dtype=float)):
             lengths, masses = _profile(v, nodes)
             info[r] = (float(lengths.sum()) + 1e-9, float(masses.sum()) + 1e-9)
     roots = list(info)
@@ -373,7 +368,7 @@ def _is_mirror(v: GraphView, a: list[int], b: list[int], plane: _Plane) -> bool:
 
 def mirror_branches(data: RobotTree, feature_set: str | FeatureSet = "paper34"
                     ) -> tuple[RobotTree, bool]:
-    """:func:`mirror_limbs` for the branches of the links below the trunk that lie on the
+    """:func:`mirror_limbs` for the branches of the links below the trunk that straddle the
     sagittal plane: a chest's arms, a mobile base's column with two arms, a head's ears.
 
     A link ``h`` below the trunk at ``p_h`` with rotation ``R_h`` (trunk frame, at rest) sees
@@ -446,7 +441,8 @@ def _rebuild(data: RobotTree, v: GraphView, replace: dict[int, tuple[int, _Plane
                 start = len(types)
                 emit(a, me, plane.h)
                 if np.any(plane.offset):  # the attachment, in the frame of the link it hangs on
-                    first = start + subtree(v.kids, a).index(_first_link(v, subtree(v.kids, a)))
+                    nodes = subtree(v.kids, a)
+                    first = start + nodes.index(_first_link(v, nodes))
                     rows[first] = rows[first].copy()
                     rows[first][attach] += plane.offset
             elif h is None and c in copy:
