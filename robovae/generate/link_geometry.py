@@ -18,7 +18,10 @@ the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT
    to its first child's anchor instead (a limb segment joins its two joints whatever the
    decoded box's orientation says); a leaf link (no child link: a foot, a hand, a head) keeps
    its box, whatever its proportions. A foot keeps its sole and a head its volume, where
-   ``link.size`` alone holds only the first geom. A box that is round in its plane
+   ``link.size`` alone holds only the first geom. A leaf link *beside* its limb (its parent
+   link carries the limb on through another child link that has children: a knee's spring
+   rod) is no foot: it keeps the capsule, whose round ends do not reach past the rod into
+   the limb as the box's corners do. A box that is round in its plane
    (``a <= 1.2 b``) and spun about its short axis by one of the link's hinges (the axis within
    15° of it, the box's centre within a quarter of ``(a + b) / 2`` of the axis line) is a
    **disc**: a wheel or a turntable, written as a cylinder of radius ``(a + b) / 2`` and
@@ -96,6 +99,8 @@ class LinkFrame:
         box: ``(centre, quat, half-sizes)`` of its collision box, in sets that have one.
         hinges: ``[(position, axis)]`` of the hinge joints in its body.
         fill: :func:`box_fill` of ``box``, when the caller has it (else computed from ``box``).
+        side: a leaf link beside its limb: its parent link carries the limb on through another
+            child link that has children (a spring or a rod at a knee), so it is no foot.
     """
 
     size: np.ndarray
@@ -106,6 +111,7 @@ class LinkFrame:
     box: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     hinges: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     fill: GeomPlan | None = None
+    side: bool = False
 
 
 def _n_size(size: np.ndarray) -> int:
@@ -206,7 +212,7 @@ def _primitive(f: LinkFrame, fill: GeomPlan | None) -> GeomPlan:
         prim = fill
         if prim.type == "box" and f.hinges:
             return _disc(f) or prim
-        if prim.type == "capsule" and not f.root and not f.children:  # a sole stays flat
+        if prim.type == "capsule" and not f.root and not f.children and not f.side:  # a sole
             assert f.box is not None  # the fill is that of the box
             return _box_geom(*f.box)
         if prim.type == "capsule" and not f.root and f.children:  # a limb segment: joined

@@ -271,9 +271,9 @@ class SpecBuilder:
                 self._shapes[k] = (size, box, fill, thickness(size, fill=fill))
         return self._shapes[i]
 
-    def _link_frame(self, i: int, kids: list[int]) -> LinkFrame:
+    def _link_frame(self, i: int, kids: dict[int, list[int]]) -> LinkFrame:
         children = []
-        for c in kids:
+        for c in kids[i]:
             t = np.zeros(3)
             mujoco.mju_rotVecQuat(t, self._anchor(c),
                                   np.array(self.vec(c, "link.quat")))
@@ -282,15 +282,17 @@ class SpecBuilder:
         size, box, fill, _ = self._link_shape(i)
         hinges = [(np.array(self.vec(j, "joint.pos")), np.array(self.vec(j, "joint.axis")))
                   for j in self.chain[i] if self.jtypes[j] == "hinge"] if box is not None else []
+        p = self.anc[i]
+        side = not kids[i] and p >= 0 and any(kids[c] for c in kids[p] if c != i)
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
-                         self.anc[i] < 0, box, hinges, fill)
+                         p < 0, box, hinges, fill, side)
 
     def _invented_geoms(self, bodies: dict[int, mujoco.MjsBody], kids: dict[int, list[int]]
                         ) -> None:
         """Every link's geoms (:func:`~robovae.generate.link_geometry.link_geoms`), their
         numbers rounded in one pass (size, pos and quat each a vector)."""
         plans = [(i, k, plan) for i in kids
-                 for k, plan in enumerate(link_geoms(self._link_frame(i, kids[i])))]
+                 for k, plan in enumerate(link_geoms(self._link_frame(i, kids)))]
         if not plans:
             return
         if any(plan.bridge for _, _, plan in plans):

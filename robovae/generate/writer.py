@@ -106,7 +106,7 @@ class WriteResult:
 WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous joints (and "
           "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
           "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
-          "equal (decoded graphs)")
+          "equal (decoded graphs), leaves beside their limb as rods")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:

@@ -210,3 +210,28 @@ def test_cylinder_gap_matches_mujoco():
         mujoco.mj_forward(model, data)
         d = mujoco.mj_geomDistance(model, data, 0, 1, 1.0, None) + 1e-4
         assert abs(d - _gap(plan, p)) < 2e-3
+
+
+# --- side leaves: a rod beside its limb is no foot ---------------------------------------------
+
+
+@pytest.mark.parametrize("side, kind", [(False, "box"), (True, "capsule")])
+def test_a_side_leaf_keeps_its_rod_where_an_end_leaf_keeps_its_sole(side, kind):
+    """A rod-shaped leaf box is written as a box at a limb's end (a sole) and as a capsule
+    beside its limb (``side``: a knee's spring rod), whose round ends stay inside the rod."""
+    box = (np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.array([0.02, 0.02, 0.12]))
+    frame = LinkFrame(np.zeros(3), np.zeros(3), np.zeros(3), [], root=False, box=box,
+                      side=side)
+    assert link_geoms(frame)[0].type == kind
+
+
+def test_procedural_biped_knee_springs_do_not_poke_into_the_shins():
+    """A procedural biped whose knees carry spring rods (seed 900009) through its ``kinematic``
+    graph and the writer: the rods come back as capsules and no geoms overlap away from a
+    joint (as boxes their corners reached 1.35 cm into the shins)."""
+    model = procedural_spec(900009, "biped").compile()
+    spec, _ = graph_to_spec(model_to_graph(model, "kinematic"), "kinematic")
+    back = spec.compile()
+    a = attachment(back)
+    assert a.all_attached
+    assert a.off_joint_pairs == 0
