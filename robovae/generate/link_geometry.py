@@ -21,7 +21,9 @@ the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT
    ``link.size`` alone holds only the first geom. A leaf link *beside* its limb (its parent
    link carries the limb on through another child link that has children: a knee's spring
    rod) is no foot: it keeps the capsule, whose round ends do not reach past the rod into
-   the limb as the box's corners do. A box that is round in its plane
+   the limb as the box's corners do, unless the robot stands on it (the writer's stance rules
+   give such a leaf, within ``SOLE_TOL · L`` of the robot's lowest point, its box back). A
+   box that is round in its plane
    (``a <= 1.2 b``) and spun about its short axis by one of the link's hinges (the axis within
    15° of it, the box's centre within a quarter of ``(a + b) / 2`` of the axis line) is a
    **disc**: a wheel or a turntable, written as a cylinder of radius ``(a + b) / 2`` and

@@ -133,6 +133,10 @@ class SpecBuilder:
         self.free_bodies: list[mujoco.MjsBody] = []
         self._shapes: dict[int, tuple] | None = None  # link -> (size, box, fill, thickness)
         self._continuous: set[str] = set()  # names of the hinges without limits
+        #: leaf links beside their limb written as rods (:class:`LinkFrame` ``side``) ...
+        self.side_leaves: list[int] = []
+        #: ... except these, which the robot stands on (the writer's ``feet``)
+        self.feet: set[int] = set()
 
     def move_links(self, shifts: dict[str, np.ndarray]) -> None:
         """Move bodies ``link<i>`` by ``shifts[name]`` in their parents' frames (their
@@ -283,7 +287,10 @@ class SpecBuilder:
         hinges = [(np.array(self.vec(j, "joint.pos")), np.array(self.vec(j, "joint.axis")))
                   for j in self.chain[i] if self.jtypes[j] == "hinge"] if box is not None else []
         p = self.anc[i]
-        side = not kids[i] and p >= 0 and any(kids[c] for c in kids[p] if c != i)
+        side = not kids[i] and p >= 0 and any(kids[c] for c in kids[p] if c != i) \
+            and i not in self.feet
+        if side:
+            self.side_leaves.append(i)
         return LinkFrame(size, self._anchor(i), np.array(self.get(i, "link.ipos")), children,
                          p < 0, box, hinges, fill, side)
 

@@ -10,7 +10,8 @@ model is compiled, ``mj_forward`` run at ``qpos0``, and the lowest point over th
 ``z = clearance`` (m) by shifting the free bodies' ``pos[2]``. This changes the root link's
 ``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it. With ``stance`` the
 stance rules run first (:mod:`robovae.generate.stance`: hanging wheels lowered onto the floor,
-soles laid flat, a biped's stilts stood on their ends; :mod:`robovae.generate.bipeds`: a
+soles laid flat, a biped's stilts stood on their ends; :mod:`robovae.generate.overlaps`: the
+root's limbs through each other slid apart; :mod:`robovae.generate.bipeds`: a
 biped's ankles made strong enough for its soles, then a ``home`` keyframe lifted with the
 robot).
 
@@ -38,6 +39,7 @@ import functools
 import math
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,18 +50,23 @@ from robovae.data.features import FeatureSet
 from robovae.data.loading import capture_mujoco_warnings, robot_root
 from robovae.data.self_collision import exclude_resting_contacts
 from robovae.data.tree_arrays import RobotTree
+from robovae.evaluate.quality.attachment import attachment
 from robovae.files import atomic_write
 from robovae.generate.bipeds import balance_home, foot_soles, strong_ankles, two_legs
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
+from robovae.generate.overlaps import clear_limbs, limb_overlaps
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
 from robovae.generate.stance import (
+    SOLE_TOL,
+    Points,
     at_qpos0,
     candidate_points,
     ground_wheels,
     level_soles,
     level_stilts,
+    support_points,
 )
 from robovae.settings import check_settings, number
 
@@ -106,7 +113,8 @@ class WriteResult:
 WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous joints (and "
           "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
           "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
-          "equal (decoded graphs), leaves beside their limb as rods")
+          "equal (decoded graphs), leaves beside their limb as rods, limbs through each other "
+          "slid apart")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
@@ -144,7 +152,16 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     fired: list[str] = []
     if rules:
         data, fired = apply_rules(data, fs)
-    builder = SpecBuilder(data, fs, name, actuators, self_collision)
+    feet: set[int] = set()
+
+    def make(*moves: dict[str, np.ndarray]) -> SpecBuilder:
+        made = SpecBuilder(data, fs, name, actuators, self_collision)
+        made.feet = feet
+        for move in moves:
+            made.move_links(move)
+        return made
+
+    builder = make()
     spec = builder.build()
     model = _compile(spec)
     stance = stance and bool(builder.free_bodies) and model.ngeom > 0
@@ -154,15 +171,28 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     kin = at_qpos0(model) if stance or placed else None
     root = robot_root(model)[0] if stance else -1  # the same body when built again
     pts = candidate_points(model, kin) if stance else None
+    if stance and builder.side_leaves:
+        feet |= _standing_leaves(builder, model, kin, pts)
+    if feet:  # built again: the side leaves it stands on keep their soles
+        builder = make()
+        spec = builder.build()
+        model = _compile(spec)
+        kin = at_qpos0(model)
+        pts = candidate_points(model, kin)
     shifts = ground_wheels(model, root, kin, pts) if stance else {}
     if shifts:  # built again, the mounts moved: their bridges follow them
-        builder = SpecBuilder(data, fs, name, actuators, self_collision)
-        builder.move_links(shifts)
+        builder = make(shifts)
         spec = builder.build()
         model = _compile(spec)
         kin = at_qpos0(model)
         pts = candidate_points(model, kin)
     fired += builder.fixes + (["ground_wheels"] if shifts else [])
+    slid = _clear_limbs(make, shifts, model, root, kin) if stance else None
+    if slid is not None:
+        builder, spec, model = slid
+        kin = at_qpos0(model)
+        pts = candidate_points(model, kin)
+        fired.append("clear_limbs")
     if stance:  # both rules read the same model (level_soles changes only the spec)
         levelled = [name for name, fires in
                     (("level_soles", level_soles(spec, model, kin, pts)),
@@ -192,6 +222,35 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     if self_collision and exclude_resting_contacts(spec):  # the final spec: its keyframe too
         fired.append("self_collision_excludes")
     return spec, model, fired
+
+
+def _standing_leaves(builder: SpecBuilder, model: mujoco.MjModel, kin: mujoco.MjData,
+                     pts: Points | None) -> set[int]:
+    """The side leaves of ``builder`` (written as rods) that reach within ``SOLE_TOL · L`` of
+    the robot's lowest point: the robot stands on them, so they are feet and keep their box."""
+    _, owner, _ = support_points(model, kin, SOLE_TOL, pts)
+    names = {model.body(int(b)).name for b in model.geom_bodyid[owner]}
+    return {i for i in builder.side_leaves if f"link{i}" in names}
+
+
+def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray],
+                 model: mujoco.MjModel, root: int, kin: mujoco.MjData
+                 ) -> tuple[SpecBuilder, mujoco.MjSpec, mujoco.MjModel] | None:
+    """The builder, spec and model of the robot built again (``make``) with
+    :func:`~robovae.generate.overlaps.clear_limbs`' slides (and the wheel mounts' ``shifts``),
+    when that leaves fewer off-joint overlaps between limbs and every body attached; else
+    None."""
+    slides = clear_limbs(model, root, kin)
+    if not slides:
+        return None
+    builder = make(shifts, slides)
+    spec = builder.build()
+    moved = _compile(spec)
+    # a limb slid as a whole changes no overlap inside it: those between limbs are compared
+    if limb_overlaps(moved, root) >= limb_overlaps(model, root, kin) \
+            or not attachment(moved, penetration=False).all_attached:
+        return None
+    return builder, spec, moved
 
 
 def graph_to_spec(

@@ -21,6 +21,7 @@ from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.evaluate.quality.attachment import attachment
 from robovae.generate.link_geometry import COVER_TOL, LinkFrame, _gap, link_geoms, thickness
+from robovae.generate.stance import at_qpos0, candidate_points
 from robovae.generate.writer import graph_to_spec
 from tests.conftest import random_tree
 
@@ -235,3 +236,40 @@ def test_procedural_biped_knee_springs_do_not_poke_into_the_shins():
     a = attachment(back)
     assert a.all_attached
     assert a.off_joint_pairs == 0
+
+
+def _thigh_with_a_stilt() -> mujoco.MjModel:
+    """A free box on two legs; each thigh carries a shin (and foot) and, beside it, a leaf
+    stilt whose box reaches 2 cm below the foot: the robot stands on its stilts."""
+    spec = mujoco.MjSpec()
+    root = spec.worldbody.add_body(name="root", pos=[0, 0, 1.0])
+    root.add_freejoint()
+    root.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.15, 0.15, 0.05])
+    for side in (-1, 1):
+        thigh = root.add_body(pos=[0, side * 0.12, -0.05])
+        thigh.add_joint(type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+        thigh.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[0, 0, 0, 0, 0, -0.4],
+                       size=[0.03, 0, 0])
+        shin = thigh.add_body(pos=[0, 0, -0.4])
+        shin.add_joint(type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+        shin.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[0, 0, 0, 0, 0, -0.4],
+                      size=[0.025, 0, 0])
+        foot = shin.add_body(pos=[0, 0, -0.4])
+        foot.add_joint(type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+        foot.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.08, 0.04, 0.01], pos=[0, 0, -0.01])
+        stilt = thigh.add_body(pos=[0.1, 0, -0.4])
+        stilt.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.015, 0.015, 0.215],
+                       pos=[0, 0, -0.215])
+    return spec.compile()
+
+
+def test_a_side_leaf_the_robot_stands_on_keeps_its_sole():
+    """A stilt beside the shin is a side leaf, written as a rod; with the stance rules, the
+    robot standing on it, it keeps its box."""
+    graph = model_to_graph(_thigh_with_a_stilt(), "kinematic")
+    kinds = {}
+    for stance in (False, True):
+        model = graph_to_spec(graph, "kinematic", stance=stance)[0].compile()
+        pts, owner = candidate_points(model, at_qpos0(model))
+        kinds[stance] = int(model.geom_type[owner[np.argmin(pts[:, 2])]])
+    assert kinds == {False: mujoco.mjtGeom.mjGEOM_CAPSULE, True: mujoco.mjtGeom.mjGEOM_BOX}

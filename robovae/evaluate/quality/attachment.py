@@ -36,7 +36,7 @@ from robovae.data.loading import quiet_forward, robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled, extent
 from robovae.settings import check_settings, number
 
-__all__ = ["AttachResult", "attachment"]
+__all__ = ["AttachResult", "attachment", "off_joint", "robot_geoms"]
 
 _G = mujoco.mjtGeom
 SPHERE, CAPSULE, CYLINDER, ELLIPSOID, BOX = (int(t) for t in (
@@ -67,7 +67,9 @@ class AttachResult:
         return self.detached / self.bodies if self.bodies else 0.0
 
 
-def _geoms_by_body(model: mujoco.MjModel, root: int) -> dict[int, list[int]]:
+def robot_geoms(model: mujoco.MjModel, root: int) -> dict[int, list[int]]:
+    """The geoms of each body of the robot below ``root`` (``root`` included), planes and
+    height fields left out."""
     out: dict[int, list[int]] = {}
     for g in range(model.ngeom):
         b = int(model.geom_bodyid[g])
@@ -108,6 +110,14 @@ def _path_length(model: mujoco.MjModel, data: mujoco.MjData, a: int, b: int) -> 
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
 
 
+def off_joint(model: mujoco.MjModel, data: mujoco.MjData, g1: int, g2: int) -> bool:
+    """Whether an overlap of geoms ``g1`` and ``g2`` (of different bodies) is *off joint*: the
+    tree path between their bodies is longer than the two are thick together (module
+    docstring)."""
+    return (_path_length(model, data, int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2]))
+            > _thickness(model, g1) + _thickness(model, g2))
+
+
 def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, list[int]],
                  threshold: float) -> tuple[float, int, int]:
     """Deepest overlap (m) between geoms of non-adjacent bodies, the pairs deeper than
@@ -120,16 +130,15 @@ def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, li
     gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (rb[:, None] + rb[None])
     apart = ((body[:, None] == body[None]) | (parent[:, None] == body[None])
              | (body[:, None] == parent[None]) | (gap > 0))
-    deepest, pairs, off_joint = 0.0, 0, 0
+    deepest, pairs, off = 0.0, 0, 0
     for i, j in zip(*np.nonzero(np.triu(~apart, 1))):
         g1, g2 = int(flat[i]), int(flat[j])
         depth = -float(mujoco.mj_geomDistance(model, data, g1, g2, 0.0, None))
         deepest = max(deepest, depth)
         if depth > threshold:
             pairs += 1
-            off_joint += (_path_length(model, data, int(body[i]), int(body[j]))
-                          > _thickness(model, g1) + _thickness(model, g2))
-    return deepest, pairs, off_joint
+            off += off_joint(model, data, g1, g2)
+    return deepest, pairs, off
 
 
 def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
@@ -151,7 +160,7 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
         quiet_forward(model, data)
         root = robot_root(model)[0]
         size = extent(model, data, root)
-    geoms = _geoms_by_body(model, root)
+    geoms = robot_geoms(model, root)
     limit = gap * size
     out = AttachResult(0, 0, extent=size)
     for b in range(1, model.nbody):
