@@ -37,13 +37,15 @@ the smallest half-size; no size: :data:`~robovae.generate.rules_geometry.DEFAULT
 
 2. **Bridges**, where the primitive does not reach a point it must reach (farther than
    :data:`COVER_TOL` ``· r`` from its surface): the link's anchor (for a non-root link) and the
-   anchor of every child link. A bridge is a capsule from the link's *core* point (the anchor,
-   the root's origin, or, to reach the link's own anchor, the primitive's centre) to that
-   point, of radius ``ρ = min(r, r_child)`` (``r`` for the own anchor), whose caps end at the
-   two points (segment inset by ``ρ`` at both ends, so that it does not reach into the
-   grandparent or grandchild); a bridge shorter than ``2ρ`` is a sphere touching both points
-   (radius half the length, at least :data:`MIN_BRIDGE` ``· ρ``). Bridges are reported
-   (``geom_bridge``) since a real robot's own geoms need none only when its features place them.
+   anchor of every child link. A bridge is a capsule from the point of the primitive's *core*
+   nearest that point (a sphere's centre, a capsule's or cylinder's axis segment, a box's
+   mid-surface: the box shrunk by its smallest half-size), or, to reach the link's own anchor,
+   from the primitive's centre, to that point, of radius ``ρ = min(r, r_child)`` (``r`` for
+   the own anchor), whose caps end at the two points (segment inset by ``ρ`` at both ends,
+   so that it does not reach into the grandparent or grandchild); a bridge shorter than
+   ``2ρ`` is a sphere touching both points (radius half the length, at least
+   :data:`MIN_BRIDGE` ``· ρ``). Bridges are reported (``geom_bridge``) since a real robot's own
+   geoms need none only when its features place them.
 
 Every child's geometry then contains its anchor ``t_c`` (its primitive starts there, or a bridge
 reaches it), and so does its parent's: the two touch at ``t_c``.
@@ -61,7 +63,7 @@ from robovae.generate.graph_view import norm
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS
 
 __all__ = ["COVER_TOL", "MIN_BRIDGE", "MIN_RADIUS", "GeomPlan", "LinkFrame", "box_fill",
-           "link_geoms", "thickness"]
+           "link_geoms", "surface_gap", "thickness"]
 
 #: A point farther than this times the thickness from the primitive's surface needs a bridge.
 COVER_TOL = 0.25
@@ -249,13 +251,13 @@ def _primitive(f: LinkFrame, fill: GeomPlan | None) -> GeomPlan:
 
 
 def _frame(g: GeomPlan) -> np.ndarray:
-    """``R(g.quat)ᵀ``: world-to-geom rotation of ``g`` (for :func:`_gap`)."""
+    """``R(g.quat)ᵀ``: world-to-geom rotation of ``g`` (for :func:`surface_gap`)."""
     mat = np.zeros(9)
     mujoco.mju_quat2Mat(mat, g.quat)
     return mat.reshape(3, 3).T
 
 
-def _gap(g: GeomPlan, p: np.ndarray, rot_t: np.ndarray | None = None) -> float:
+def surface_gap(g: GeomPlan, p: np.ndarray, rot_t: np.ndarray | None = None) -> float:
     """Distance (m) from point ``p`` to the surface of ``g`` (≤ 0 inside); ``rot_t``:
     :func:`_frame` of ``g`` when already computed."""
     local = (_frame(g) if rot_t is None else rot_t) @ (p - g.pos)
@@ -284,17 +286,31 @@ def _bridge(a: np.ndarray, b: np.ndarray, radius: float) -> GeomPlan:
                     _quat_z_to(d / length), True)
 
 
+def _core(g: GeomPlan, p: np.ndarray, rot_t: np.ndarray) -> np.ndarray:
+    """The point of ``g``'s core nearest ``p``: a sphere's centre, a capsule's or a
+    cylinder's axis segment, a box's mid-surface (the box shrunk by its smallest half-size)."""
+    local = rot_t @ (p - g.pos)
+    if g.type == "sphere":
+        return g.pos.copy()
+    if g.type in ("capsule", "cylinder"):
+        h = float(g.size[1])
+        local = np.array([0.0, 0.0, min(max(float(local[2]), -h), h)])
+    else:
+        inner = g.size - float(np.min(g.size))
+        local = np.clip(local, -inner, inner)
+    return g.pos + rot_t.T @ local
+
+
 def link_geoms(f: LinkFrame) -> list[GeomPlan]:
     """The primitive of a link, then its bridges (module docstring)."""
     fill = f.fill if f.fill is not None else box_fill(f.box)
     prim = _primitive(f, fill)
     r = thickness(f.size, fill=fill)
     out = [prim]
-    core = np.zeros(3) if f.root else f.anchor
     rot_t = _frame(prim)
-    if not f.root and _gap(prim, f.anchor, rot_t) > COVER_TOL * r:
+    if not f.root and surface_gap(prim, f.anchor, rot_t) > COVER_TOL * r:
         out.append(_bridge(prim.pos, f.anchor, r))
     for t, r_child in f.children:
-        if _gap(prim, t, rot_t) > COVER_TOL * r:
-            out.append(_bridge(core, t, min(r, r_child)))
+        if surface_gap(prim, t, rot_t) > COVER_TOL * r:
+            out.append(_bridge(_core(prim, t, rot_t), t, min(r, r_child)))
     return out

@@ -114,7 +114,7 @@ WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous
           "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
           "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
           "equal (decoded graphs), leaves beside their limb as rods, limbs through each other "
-          "slid apart")
+          "slid apart, bridges from the primitive's core")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:

@@ -20,7 +20,13 @@ from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.data.zoo import zoo_files
 from robovae.evaluate.quality.attachment import attachment
-from robovae.generate.link_geometry import COVER_TOL, LinkFrame, _gap, link_geoms, thickness
+from robovae.generate.link_geometry import (
+    COVER_TOL,
+    LinkFrame,
+    link_geoms,
+    surface_gap,
+    thickness,
+)
 from robovae.generate.stance import at_qpos0, candidate_points
 from robovae.generate.writer import graph_to_spec
 from tests.conftest import random_tree
@@ -126,6 +132,19 @@ def test_garbage_graphs_are_written_in_one_piece():
         assert a.all_attached, a.detached_bodies
 
 
+def test_a_bridge_starts_at_the_primitive_core_point_nearest_its_end():
+    """A root box 0.6 m long reaches a limb mount beyond its end with a bridge from inside its
+    end (the box's mid-surface), not from the root's origin through the box."""
+    t = np.array([0.6, 0.05, 0.0])
+    frame = LinkFrame(np.array([0.3, 0.1, 0.02]), np.zeros(3), np.zeros(3), [(t, 0.02)],
+                      root=True)
+    prim, bridge = link_geoms(frame)
+    assert prim.type == "box" and bridge.type == "capsule" and bridge.bridge
+    assert np.allclose(bridge.pos, [0.44, 0.05, 0.0])  # from (0.28, 0.05, 0) to t
+    assert bridge.size[1] == pytest.approx(0.16 - 0.02)  # caps end at both points
+    assert surface_gap(prim, np.array([0.28, 0.05, 0.0])) < 0  # it starts inside the box
+
+
 @pytest.mark.parametrize("seed", range(20))
 def test_link_geometry_reaches_its_anchor_and_its_children(seed):
     rng = np.random.default_rng(seed)
@@ -142,7 +161,7 @@ def test_link_geometry_reaches_its_anchor_and_its_children(seed):
         assert np.allclose(geoms[0].size[:k], size[:k])  # the primitive keeps link.size
     points = [t for t, _ in children] + ([] if frame.root else [frame.anchor])
     for p in points:
-        assert min(_gap(g, p) for g in geoms) <= COVER_TOL * r + 1e-9
+        assert min(surface_gap(g, p) for g in geoms) <= COVER_TOL * r + 1e-9
 
 
 # --- discs: wheels and turntables --------------------------------------------------------------
@@ -210,7 +229,7 @@ def test_cylinder_gap_matches_mujoco():
         data.mocap_pos[0] = p
         mujoco.mj_forward(model, data)
         d = mujoco.mj_geomDistance(model, data, 0, 1, 1.0, None) + 1e-4
-        assert abs(d - _gap(plan, p)) < 2e-3
+        assert abs(d - surface_gap(plan, p)) < 2e-3
 
 
 # --- side leaves: a rod beside its limb is no foot ---------------------------------------------
