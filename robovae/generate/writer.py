@@ -11,7 +11,7 @@ model is compiled, ``mj_forward`` run at ``qpos0``, and the lowest point over th
 ``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it. With ``stance`` the
 stance rules run first (:mod:`robovae.generate.stance`: hanging wheels lowered onto the floor,
 soles laid flat, a biped's stilts stood on their ends; :mod:`robovae.generate.overlaps`: the
-root's limbs through each other slid apart; :mod:`robovae.generate.bipeds`: a
+branches through each other slid apart; :mod:`robovae.generate.bipeds`: a
 biped's ankles made strong enough for its soles, then a ``home`` keyframe lifted with the
 robot).
 
@@ -55,7 +55,7 @@ from robovae.files import atomic_write
 from robovae.generate.bipeds import balance_home, foot_soles, strong_ankles, two_legs
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
-from robovae.generate.overlaps import clear_limbs, limb_overlaps
+from robovae.generate.overlaps import clear_limbs
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
 from robovae.generate.stance import (
@@ -114,7 +114,8 @@ WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous
           "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
           "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
           "equal (decoded graphs), leaves beside their limb as rods, limbs through each other "
-          "slid apart, bridges from the primitive's core")
+          "slid apart, branches within a limb too (their joining geometry following), bridges "
+          "from the primitive's core")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
@@ -238,17 +239,18 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
                  ) -> tuple[SpecBuilder, mujoco.MjSpec, mujoco.MjModel] | None:
     """The builder, spec and model of the robot built again (``make``) with
     :func:`~robovae.generate.overlaps.clear_limbs`' slides (and the wheel mounts' ``shifts``),
-    when that leaves fewer off-joint overlaps between limbs and every body attached; else
-    None."""
+    when that leaves fewer off-joint overlaps and every body attached; else None."""
     slides = clear_limbs(model, root, kin)
     if not slides:
         return None
     builder = make(shifts, slides)
     spec = builder.build()
     moved = _compile(spec)
-    # a limb slid as a whole changes no overlap inside it: those between limbs are compared
-    if limb_overlaps(moved, root) >= limb_overlaps(model, root, kin) \
-            or not attachment(moved, penetration=False).all_attached:
+    # a mount moved reshapes the geometry joining it to its parent: every overlap is counted
+    after = attachment(moved)
+    # slides come only for a robot with overlaps: none left is fewer
+    if not after.all_attached or (after.off_joint_pairs
+                                  and after.off_joint_pairs >= attachment(model).off_joint_pairs):
         return None
     return builder, spec, moved
 

@@ -1,4 +1,4 @@
-"""``clear_limbs`` (:mod:`robovae.generate.overlaps`): limbs through each other slide apart."""
+"""``clear_limbs`` (:mod:`robovae.generate.overlaps`): branches through each other slide apart."""
 
 from __future__ import annotations
 
@@ -56,6 +56,39 @@ def test_legs_mounted_inside_the_waist_slide_down_and_out_of_it(seed):
     assert set(slides) == set(legs)  # the legs move, not the waist
     a, b = (slides[name] for name in legs)
     assert a[2] < 0 and np.allclose(a * [1, -1, 1], b, atol=1e-9)  # down, mirrored
+    assert "clear_limbs" in rules
+    after = attachment(spec.compile())
+    assert after.off_joint_pairs == 0 and after.all_attached
+
+
+def test_arms_hung_through_the_chest_slide_back_out_mirrored():
+    """Inside one limb: a procedural humanoid's arms mounted 8 cm nearer the plane on its
+    chest pass through the torso's other parts; the arms, not the spine or legs, slide out."""
+    graph = model_to_graph(procedural_spec(900003, "humanoid").compile(), FS)
+    model = graph_to_spec(graph, FS, stance=True)[0].compile()
+    data = at_qpos0(model)
+    root = robot_root(model)[0]
+    y = np.abs(data.xpos[:, 1] - data.xpos[root, 1])
+    arms = [model.body(b).name for b in range(1, model.nbody)
+            if model.body_parentid[b] not in (0, root) and y[model.body_parentid[b]] < 0.02
+            and y[b] > 0.02]
+    assert len(arms) == 2
+    x = graph.x.clone()
+    col = FS.slice("link.pos").start + 1
+    for name in arms:
+        i = int(name.removeprefix("link"))
+        x[i, col] -= float(np.sign(x[i, col])) * 0.08
+    narrow = graph.clone()
+    narrow.x = x
+    before = graph_to_spec(narrow, FS)[0].compile()
+    assert attachment(before).off_joint_pairs > 0
+    slides = clear_limbs(before, robot_root(before)[0])
+    assert set(slides) == set(arms)
+    a, b = (slides[name] for name in arms)
+    assert np.allclose(a * [1, -1, 1], b, atol=1e-9)  # mirrored ...
+    side = np.sign(graph.x[int(arms[0].removeprefix("link")), col])
+    assert a[1] * side > 0.02  # ... and back out
+    spec, rules = graph_to_spec(narrow, FS, stance=True)
     assert "clear_limbs" in rules
     after = attachment(spec.compile())
     assert after.off_joint_pairs == 0 and after.all_attached

@@ -36,7 +36,7 @@ from robovae.data.loading import quiet_forward, robot_root
 from robovae.evaluate.quality.stage import HFIELD, PLANE, Robot, Stage, compiled, extent
 from robovae.settings import check_settings, number
 
-__all__ = ["AttachResult", "attachment", "off_joint", "robot_geoms"]
+__all__ = ["AttachResult", "attachment", "near_pairs", "off_joint", "robot_geoms"]
 
 _G = mujoco.mjtGeom
 SPHERE, CAPSULE, CYLINDER, ELLIPSOID, BOX = (int(t) for t in (
@@ -118,20 +118,29 @@ def off_joint(model: mujoco.MjModel, data: mujoco.MjData, g1: int, g2: int) -> b
             > _thickness(model, g1) + _thickness(model, g2))
 
 
-def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, list[int]],
-                 threshold: float) -> tuple[float, int, int]:
-    """Deepest overlap (m) between geoms of non-adjacent bodies, the pairs deeper than
-    ``threshold`` and those of them off joint (module docstring); a bounding-sphere pre-test
-    skips pairs that cannot touch."""
-    flat = np.array([g for gs in geoms.values() for g in gs], dtype=int)
+def near_pairs(model: mujoco.MjModel, data: mujoco.MjData, flat: np.ndarray,
+               margins: tuple[float, ...] = (0.0,)) -> list[list[tuple[int, int]]]:
+    """Per margin ``m`` (m), the index pairs ``i < j`` into ``flat`` (geom ids) of geoms of
+    bodies that are neither the same nor parent and child whose bounding spheres come within
+    ``m`` of each other: the pairs that can overlap (``m = 0``), or meet when moved by ``m``."""
     body = model.geom_bodyid[flat]
     parent = model.body_parentid[body]
     pos, rb = data.geom_xpos[flat], model.geom_rbound[flat]
     gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (rb[:, None] + rb[None])
-    apart = ((body[:, None] == body[None]) | (parent[:, None] == body[None])
-             | (body[:, None] == parent[None]) | (gap > 0))
+    other = np.triu((body[:, None] != body[None]) & (parent[:, None] != body[None])
+                    & (body[:, None] != parent[None]), 1)
+    return [[(int(i), int(j)) for i, j in zip(*np.nonzero(other & (gap <= m)))]
+            for m in margins]
+
+
+def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, list[int]],
+                 threshold: float) -> tuple[float, int, int]:
+    """Deepest overlap (m) between geoms of non-adjacent bodies, the pairs deeper than
+    ``threshold`` and those of them off joint (module docstring); a bounding-sphere pre-test
+    (:func:`near_pairs`) skips pairs that cannot touch."""
+    flat = np.array([g for gs in geoms.values() for g in gs], dtype=int)
     deepest, pairs, off = 0.0, 0, 0
-    for i, j in zip(*np.nonzero(np.triu(~apart, 1))):
+    for i, j in near_pairs(model, data, flat)[0]:
         g1, g2 = int(flat[i]), int(flat[j])
         depth = -float(mujoco.mj_geomDistance(model, data, g1, g2, 0.0, None))
         deepest = max(deepest, depth)
