@@ -35,7 +35,9 @@ none is left (an overlap no slide clears is passed over).
 :func:`clear_limbs` returns the mounts' displacements in their parents' frames; the writer
 builds the robot again with them (the geometry joining a mount to its parent follows it) and
 keeps that robot only when fewer of its geoms overlap off joint and every body is still attached
-(:func:`~robovae.evaluate.quality.attachment.attachment`).
+(:func:`~robovae.evaluate.quality.attachment.attachment`). The robot built again is not quite
+the one the rule tested (a bridge the writer adds, a segment that turns), so while overlaps are
+left the writer runs the rule again on it, up to :data:`PASSES` times, adding the slides.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ from robovae.evaluate.quality.stage import extent
 from robovae.generate.link_geometry import COVER_TOL, GeomPlan, surface_gap
 from robovae.generate.stance import at_qpos0
 
-__all__ = ["MAX_ROUNDS", "MAX_SLIDE", "STEP", "TOLERANCE", "clear_limbs"]
+__all__ = ["MAX_ROUNDS", "MAX_SLIDE", "PASSES", "STEP", "TOLERANCE", "clear_limbs"]
 
 #: An overlap is deeper than this share of the robot's extent ``L`` (the quality table's 1 %).
 TOLERANCE = 0.01
@@ -58,6 +60,8 @@ STEP = 0.01
 MAX_SLIDE = 0.15
 #: Overlaps cleared (or passed over) at most.
 MAX_ROUNDS = 8
+#: The writer runs the rule at most this many times, each on the robot it built again.
+PASSES = 3
 
 _G = mujoco.mjtGeom
 _CAPSULE = int(_G.mjGEOM_CAPSULE)

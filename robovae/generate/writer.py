@@ -55,7 +55,7 @@ from robovae.files import atomic_write
 from robovae.generate.bipeds import balance_home, foot_soles, strong_ankles, two_legs
 from robovae.generate.graph_view import as_feature_set
 from robovae.generate.mjcf_numbers import mjcf_round
-from robovae.generate.overlaps import clear_limbs
+from robovae.generate.overlaps import PASSES, clear_limbs
 from robovae.generate.rules import apply_rules
 from robovae.generate.spec_builder import ActuatorMode, SpecBuilder
 from robovae.generate.stance import (
@@ -114,8 +114,8 @@ WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous
           "procedural wheels), hanging wheels grounded, biped stilts levelled, biped ankles "
           "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
           "equal (decoded graphs), leaves beside their limb as rods, limbs through each other "
-          "slid apart, branches within a limb too (their joining geometry following), bridges "
-          "from the primitive's core")
+          "slid apart, branches within a limb too (their joining geometry following, in up to "
+          "three passes), bridges from the primitive's core")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
@@ -239,20 +239,32 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
                  ) -> tuple[SpecBuilder, mujoco.MjSpec, mujoco.MjModel] | None:
     """The builder, spec and model of the robot built again (``make``) with
     :func:`~robovae.generate.overlaps.clear_limbs`' slides (and the wheel mounts' ``shifts``),
-    when that leaves fewer off-joint overlaps and every body attached; else None."""
-    slides = clear_limbs(model, root, kin)
-    if not slides:
-        return None
-    builder = make(shifts, slides)
-    spec = builder.build()
-    moved = _compile(spec)
-    # a mount moved reshapes the geometry joining it to its parent: every overlap is counted
-    after = attachment(moved)
-    # slides come only for a robot with overlaps: none left is fewer
-    if not after.all_attached or (after.off_joint_pairs
-                                  and after.off_joint_pairs >= attachment(model).off_joint_pairs):
-        return None
-    return builder, spec, moved
+    when that leaves fewer off-joint overlaps and every body attached; else None. Up to
+    :data:`~robovae.generate.overlaps.PASSES` times, each pass on the robot the last one built
+    (its slides added to theirs), while overlaps are left."""
+    best = None
+    total: dict[str, np.ndarray] = {}
+    count = None  # the off-joint overlaps of the robot the pass starts from
+    for _ in range(PASSES):
+        slides = clear_limbs(model, root, kin)
+        if not slides:
+            break
+        for name, move in slides.items():  # in parents. frames, which no slide turns: they add
+            total[name] = total.get(name, np.zeros(3)) + move
+        builder = make(shifts, total)
+        spec = builder.build()
+        moved = _compile(spec)
+        # a mount moved reshapes the geometry joining it to its parent: every overlap counts
+        after = attachment(moved)
+        if count is None:
+            count = attachment(model).off_joint_pairs if after.off_joint_pairs else 1
+        if not after.all_attached or after.off_joint_pairs >= count:
+            break  # slides come only for a robot with overlaps: none left is fewer
+        best, model, count = (builder, spec, moved), moved, after.off_joint_pairs
+        if not count:
+            break
+        kin = at_qpos0(model)
+    return best
 
 
 def graph_to_spec(

@@ -11,7 +11,8 @@ from robovae.data.loading import robot_root
 from robovae.data.mjcf import model_to_graph
 from robovae.data.procedural import procedural_spec
 from robovae.evaluate.quality.attachment import attachment
-from robovae.generate.overlaps import clear_limbs
+from robovae.generate import writer
+from robovae.generate.overlaps import PASSES, clear_limbs
 from robovae.generate.stance import at_qpos0
 from robovae.generate.writer import graph_to_spec
 
@@ -61,10 +62,11 @@ def test_legs_mounted_inside_the_waist_slide_down_and_out_of_it(seed):
     assert after.off_joint_pairs == 0 and after.all_attached
 
 
-def test_arms_hung_through_the_chest_slide_back_out_mirrored():
-    """Inside one limb: a procedural humanoid's arms mounted 8 cm nearer the plane on its
-    chest pass through the torso's other parts; the arms, not the spine or legs, slide out."""
-    graph = model_to_graph(procedural_spec(900003, "humanoid").compile(), FS)
+def _narrow_arms(seed: int, dy: float):
+    """A procedural humanoid's graph with its arms mounted ``dy`` m nearer the sagittal plane
+    on its chest (the arms hang through the torso's other parts), the arms' names and the
+    sides (signs of their mounts' y on the chest) they were on."""
+    graph = model_to_graph(procedural_spec(seed, "humanoid").compile(), FS)
     model = graph_to_spec(graph, FS, stance=True)[0].compile()
     data = at_qpos0(model)
     root = robot_root(model)[0]
@@ -72,26 +74,47 @@ def test_arms_hung_through_the_chest_slide_back_out_mirrored():
     arms = [model.body(b).name for b in range(1, model.nbody)
             if model.body_parentid[b] not in (0, root) and y[model.body_parentid[b]] < 0.02
             and y[b] > 0.02]
-    assert len(arms) == 2
     x = graph.x.clone()
     col = FS.slice("link.pos").start + 1
     for name in arms:
         i = int(name.removeprefix("link"))
-        x[i, col] -= float(np.sign(x[i, col])) * 0.08
+        x[i, col] -= float(np.sign(x[i, col])) * dy
     narrow = graph.clone()
     narrow.x = x
+    return narrow, arms, [float(np.sign(graph.x[int(n.removeprefix("link")), col])) for n in arms]
+
+
+def test_arms_hung_through_the_chest_slide_back_out_mirrored():
+    """Inside one limb: the arms, not the spine or legs, slide back out, mirrored."""
+    narrow, arms, sides = _narrow_arms(900003, 0.08)
+    assert len(arms) == 2
     before = graph_to_spec(narrow, FS)[0].compile()
     assert attachment(before).off_joint_pairs > 0
     slides = clear_limbs(before, robot_root(before)[0])
     assert set(slides) == set(arms)
     a, b = (slides[name] for name in arms)
     assert np.allclose(a * [1, -1, 1], b, atol=1e-9)  # mirrored ...
-    side = np.sign(graph.x[int(arms[0].removeprefix("link")), col])
-    assert a[1] * side > 0.02  # ... and back out
+    assert a[1] * sides[0] > 0.02  # ... and back out
     spec, rules = graph_to_spec(narrow, FS, stance=True)
     assert "clear_limbs" in rules
     after = attachment(spec.compile())
     assert after.off_joint_pairs == 0 and after.all_attached
+
+
+def test_a_second_pass_clears_what_the_robot_built_again_still_overlaps(monkeypatch):
+    """Arms 10 cm too near the plane: one pass of the rule leaves two overlaps in the robot
+    built again, the writer's further passes (on that robot) none."""
+    narrow, arms, _ = _narrow_arms(900001, 0.10)
+    assert len(arms) == 2
+    left = []
+    for passes in (1, PASSES):
+        monkeypatch.setattr(writer, "PASSES", passes)
+        spec, rules = graph_to_spec(narrow, FS, stance=True)
+        assert "clear_limbs" in rules
+        result = attachment(spec.compile())
+        assert result.all_attached
+        left.append(result.off_joint_pairs)
+    assert left[0] > 0 and left[1] == 0
 
 
 @pytest.mark.parametrize("kind", ["humanoid", "hexapod", "biped"])
