@@ -42,7 +42,10 @@ class PauseAt(L.Callback):
 
     def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
         if trainer.current_epoch == self.epoch and batch_idx == self.batch:
-            self.marker.write_text(json.dumps({"global_step": trainer.global_step}))
+            # whole or not at all: the test reads it as soon as it exists
+            part = self.marker.with_name(self.marker.name + ".part")
+            part.write_text(json.dumps({"global_step": trainer.global_step}))
+            part.replace(self.marker)
             while True:
                 time.sleep(0.5)
 
