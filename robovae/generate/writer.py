@@ -245,11 +245,13 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
     best = None
     total: dict[str, np.ndarray] = {}
     count = None  # the off-joint overlaps of the robot the pass starts from
-    for _ in range(PASSES):
+    for n in range(PASSES):
+        if n:  # the robot the last pass built
+            kin = at_qpos0(model)
         slides = clear_limbs(model, root, kin)
         if not slides:
             break
-        for name, move in slides.items():  # in parents. frames, which no slide turns: they add
+        for name, move in slides.items():  # in parents' frames, which no slide turns: they add
             total[name] = total.get(name, np.zeros(3)) + move
         builder = make(shifts, total)
         spec = builder.build()
@@ -263,7 +265,6 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
         best, model, count = (builder, spec, moved), moved, after.off_joint_pairs
         if not count:
             break
-        kin = at_qpos0(model)
     return best
 
 
