@@ -4,7 +4,9 @@ A decoded robot can hold two of its root's limbs through each other, a limb thro
 own geometry, or one part of a limb through another: a humanoid's hips decoded 6–14 cm above
 its root, inside the waist, where the corpus has them below it; its arms, hung from the chest,
 beside the waist through it (docs/generation.md, *Reconstructions overlap too*). The writer runs
-this rule with the stance rules, on the compiled robot at ``qpos0``, before its floor placement.
+this rule with the stance rules, on the compiled robot at ``qpos0``, before its floor placement;
+on a fixed-base robot too (an arm's fingers written through each other), which gets no other
+stance rule.
 
 With ``L`` the robot's extent (:func:`~robovae.evaluate.quality.stage.extent`), an *overlap* is
 a pair of geoms of bodies that are neither the same body nor parent and child, deeper than

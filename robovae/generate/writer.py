@@ -11,7 +11,7 @@ model is compiled, ``mj_forward`` run at ``qpos0``, and the lowest point over th
 ``pos[2]`` (the only feature that changes); ``clearance=None`` keeps it. With ``stance`` the
 stance rules run first (:mod:`robovae.generate.stance`: hanging wheels lowered onto the floor,
 soles laid flat, a biped's stilts stood on their ends; :mod:`robovae.generate.overlaps`: the
-branches through each other slid apart; :mod:`robovae.generate.bipeds`: a
+branches through each other slid apart, on a fixed base too; :mod:`robovae.generate.bipeds`: a
 biped's ankles made strong enough for its soles, then a ``home`` keyframe lifted with the
 robot).
 
@@ -115,7 +115,7 @@ WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous
           "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
           "equal (decoded graphs), leaves beside their limb as rods, limbs through each other "
           "slid apart, branches within a limb too (their joining geometry following, in up to "
-          "three passes), bridges from the primitive's core")
+          "three passes), bridges from the primitive's core, fixed bases' branches slid apart too")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
@@ -165,12 +165,13 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     builder = make()
     spec = builder.build()
     model = _compile(spec)
-    stance = stance and bool(builder.free_bodies) and model.ngeom > 0
+    clear = stance and model.ngeom > 0  # branches slid apart: fixed bases too
+    stance = clear and bool(builder.free_bodies)
     placed = clearance is not None and bool(builder.free_bodies) and model.ngeom > 0
-    # one MjData (about 0.35 ms to make) serves the stance rules and the floor placement, and
+    # one MjData (about 0.4 ms to make) serves the stance rules and the floor placement, and
     # the stance rules share the geoms' candidate points of each compiled model
-    kin = at_qpos0(model) if stance or placed else None
-    root = robot_root(model)[0] if stance else -1  # the same body when built again
+    kin = at_qpos0(model) if clear or placed else None
+    root = robot_root(model)[0] if clear else -1  # the same body when built again
     pts = candidate_points(model, kin) if stance else None
     if stance and builder.side_leaves:
         feet |= _standing_leaves(builder, model, kin, pts)
@@ -188,11 +189,11 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         kin = at_qpos0(model)
         pts = candidate_points(model, kin)
     fired += builder.fixes + (["ground_wheels"] if shifts else [])
-    slid = _clear_limbs(make, shifts, model, root, kin) if stance else None
+    slid = _clear_limbs(make, shifts, model, root, kin) if clear else None
     if slid is not None:
         builder, spec, model = slid
         kin = at_qpos0(model)
-        pts = candidate_points(model, kin)
+        pts = candidate_points(model, kin) if stance else None
         fired.append("clear_limbs")
     if stance:  # both rules read the same model (level_soles changes only the spec)
         levelled = [name for name, fires in
@@ -299,7 +300,8 @@ def graph_to_spec(
             point feet, ankles strong enough for its soles and a balanced ``home`` keyframe
             (:mod:`robovae.generate.stance`: ``ground_wheels``, ``level_soles``,
             ``level_stilts``; :mod:`robovae.generate.bipeds`: ``foot_soles``, ``strong_ankles``,
-            ``balance_home``).
+            ``balance_home``); any robot, fixed bases too, gets its branches through each
+            other slid apart (:mod:`robovae.generate.overlaps`: ``clear_limbs``).
 
     Returns:
         The spec (already compiled once, so ``spec.to_xml()`` works) and the names of the rules

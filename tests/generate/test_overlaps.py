@@ -125,3 +125,26 @@ def test_robots_without_overlaps_are_left_as_they_are(kind):
     xpos = data.geom_xpos.copy()
     assert clear_limbs(model, robot_root(model)[0], data) == {}
     assert np.array_equal(data.geom_xpos, xpos)
+
+
+@pytest.mark.parametrize("seed", [900005, 900021])
+def test_a_fixed_base_arms_gripper_fingers_through_each_other_slide_apart(seed):
+    """Fixed bases get the rule too, though no stance rule: the two fingers a procedural arm's
+    graph is written with through each other slide apart, mirrored."""
+    graph = model_to_graph(procedural_spec(seed, "arm").compile(), FS)
+    before = graph_to_spec(graph, FS)[0].compile()
+    root = robot_root(before)[0]
+    assert before.body_jntnum[root] == 0 and before.body_parentid[root] == 0  # welded
+    assert attachment(before).off_joint_pairs > 0
+    slides = clear_limbs(before, root)
+    assert len(slides) == 2
+    a, b = slides.values()
+    assert np.allclose(a * [1, -1, 1], b, atol=1e-9)
+    parents = {int(before.body_parentid[before.body(name).id]) for name in slides}
+    assert len(parents) == 1  # the fingers: two branches of the gripper's body
+    spec, rules = graph_to_spec(graph, FS, stance=True)
+    assert "clear_limbs" in rules
+    after = spec.compile()
+    assert after.body_jntnum[robot_root(after)[0]] == 0  # still welded: no free joint added
+    result = attachment(after)
+    assert result.off_joint_pairs == 0 and result.all_attached
