@@ -50,6 +50,7 @@ import numpy as np
 from robovae.evaluate.quality.attachment import near_pairs, off_joint, robot_geoms
 from robovae.evaluate.quality.stage import extent
 from robovae.generate.link_geometry import COVER_TOL, GeomPlan, surface_gap
+from robovae.generate.spec_builder import is_link_primitive
 from robovae.generate.stance import at_qpos0
 
 __all__ = ["MAX_ROUNDS", "MAX_SLIDE", "PASSES", "STEP", "TOLERANCE", "clear_limbs"]
@@ -166,17 +167,19 @@ class _Branches:
     def _follow(self, top: int) -> list[tuple[int, int, int | None, np.ndarray]]:
         """The capsules of ``top``'s parent body that the writer makes end at ``top``'s
         anchor (its first joint, else its origin), which follow it: a non-root link's limb
-        segment (its first geom, ``link<i>_geom``) whose segment ends there, and the bridges
-        (``link<i>_geom<k>``) whose caps end there. Each as ``(index into geoms, end, the
-        parent's first geom for a bridge, the anchor from that end)``: a bridge is left out
-        where its parent's first geom covers the anchor (the writer makes none there)."""
+        segment (its primitive, named as
+        :func:`~robovae.generate.spec_builder.is_link_primitive` says) whose segment ends
+        there, and the bridges (its other geoms) whose caps end there. Each as ``(index into
+        geoms, end, the parent's first geom for a bridge, the anchor from that end)``: a
+        bridge is left out where its parent's first geom covers the anchor (the writer makes
+        none there)."""
         if top not in self._followers:
             m, d = self.model, self.data
             anchor = d.xanchor[m.body_jntadr[top]] if m.body_jntnum[top] else d.xpos[top]
             parent = int(m.body_parentid[top])
             mine = np.flatnonzero(self.body == parent)
             first = next((int(i) for i in mine
-                          if m.geom(int(self.geoms[i])).name.endswith("_geom")), None)
+                          if is_link_primitive(m.geom(int(self.geoms[i])).name)), None)
             found: list[tuple[int, int, int | None, np.ndarray]] = []
             for i in mine:
                 g = int(self.geoms[i])

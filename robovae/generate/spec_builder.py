@@ -76,7 +76,8 @@ from robovae.generate.mjcf_numbers import (
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS
 from robovae.generate.rules_mass import MIN_INERTIA, MIN_MASS
 
-__all__ = ["DEFAULT_CTRLRANGE", "DEFAULT_GEAR", "WRITER_FIXES", "ActuatorMode", "SpecBuilder"]
+__all__ = ["DEFAULT_CTRLRANGE", "DEFAULT_GEAR", "WRITER_FIXES", "ActuatorMode", "SpecBuilder",
+           "is_link_primitive", "link_geom_name"]
 
 #: Motor gear when the feature set has none for the joint.
 DEFAULT_GEAR = 1.0
@@ -87,6 +88,19 @@ WRITER_FIXES = ("empty_robot", "dangling_joint", "joint_shared", "orphan_geom",
                 "free_not_top_level", "dof_chain_split", "inertia_rounding", "geom_bridge")
 
 ActuatorMode = Literal["auto", "all", "none"]
+
+
+def link_geom_name(link: int, k: int) -> str:
+    """Name of the ``k``-th geom the writer makes for link ``link``: ``link<i>_geom`` for its
+    primitive (``k = 0``), ``link<i>_geom<k>`` for the bridges after it
+    (:func:`~robovae.generate.link_geometry.link_geoms`)."""
+    return f"link{link}_geom" if k == 0 else f"link{link}_geom{k}"
+
+
+def is_link_primitive(name: str) -> bool:
+    """Whether a geom named ``name`` is a link's primitive as :func:`link_geom_name` names it
+    (not one of its bridges)."""
+    return name.startswith("link") and name.endswith("_geom") and name[4:-5].isdigit()
 
 _JNT = {"free": mujoco.mjtJoint.mjJNT_FREE, "ball": mujoco.mjtJoint.mjJNT_BALL,
         "slide": mujoco.mjtJoint.mjJNT_SLIDE, "hinge": mujoco.mjtJoint.mjJNT_HINGE}
@@ -308,7 +322,7 @@ class SpecBuilder:
             np.array([np.concatenate([p.size, p.pos, p.quat]) for _, _, p in plans]),
             _GEOM_GROUPS)
         for (i, k, plan), v in zip(plans, numbers):
-            g = bodies[i].add_geom(name=f"link{i}_geom" if k == 0 else f"link{i}_geom{k}",
+            g = bodies[i].add_geom(name=link_geom_name(i, k),
                                    type=_PRIMITIVE[plan.type], size=v[:3], pos=v[3:6],
                                    quat=v[6:], rgba=_LINK_RGBA)
             g.contype, g.conaffinity = 1, int(self.self_collision)
@@ -340,7 +354,8 @@ class SpecBuilder:
             body = spec.worldbody.add_body(name="link0")
             r = DEFAULT_GEOM_RADIUS
             self._inertial(body, 1e-3, [0.4e-3 * r * r] * 3, [0, 0, 0], [1, 0, 0, 0])
-            g = body.add_geom(name="link0_geom", type=_SPHERE, size=[r, 0, 0], rgba=_LINK_RGBA)
+            g = body.add_geom(name=link_geom_name(0, 0), type=_SPHERE, size=[r, 0, 0],
+                              rgba=_LINK_RGBA)
             g.contype, g.conaffinity = 1, int(self.self_collision)
             return spec
 

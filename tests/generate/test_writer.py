@@ -34,7 +34,12 @@ from robovae.evaluate.quality.locomotion import continuous_actuators
 from robovae.generate import writer as writer_module
 from robovae.generate.bodies import link_structure
 from robovae.generate.rules import apply_rules
-from robovae.generate.spec_builder import DEFAULT_CTRLRANGE, DEFAULT_GEAR, WRITER_FIXES
+from robovae.generate.spec_builder import (
+    DEFAULT_CTRLRANGE,
+    DEFAULT_GEAR,
+    WRITER_FIXES,
+    is_link_primitive,
+)
 from robovae.generate.writer import WriteResult, graph_to_spec, scene_xml, write_robot
 from tests.conftest import random_tree
 from tests.reliability.strategies import assert_same_graph as assert_same
@@ -154,6 +159,23 @@ def test_paper34_robot_structure(tmp_path):
     target = g.x[child, fs.slice("link.pos")].numpy() - anchor
     assert np.allclose(u, target / np.linalg.norm(target), atol=1e-5)
     assert '<mujoco model="quad">' in result.robot_path.read_text()
+
+
+@pytest.mark.parametrize("kind,seed", [("humanoid", 1), ("mobile_manipulator", 3)])
+def test_a_links_primitive_is_its_first_geom_by_name_and_its_bridges_follow(kind, seed):
+    """``overlaps`` tells a link's primitive from its bridges by the names the writer gives."""
+    fs = get_feature_set("kinematic")
+    graph = model_to_graph(procedural_spec(seed, kind).compile(), fs)
+    spec, rules = graph_to_spec(graph, fs)
+    assert "geom_bridge" in rules
+    m = spec.compile()
+    bridged = 0
+    for b in range(1, m.nbody):
+        names = [m.geom(g).name for g in range(m.body_geomadr[b],
+                                                m.body_geomadr[b] + m.body_geomnum[b])]
+        assert [is_link_primitive(n) for n in names] == [True] + [False] * (len(names) - 1)
+        bridged += len(names) > 1
+    assert bridged > 0
 
 
 def test_full_actuators_follow_the_flags(tmp_path):
