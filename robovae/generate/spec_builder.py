@@ -102,6 +102,7 @@ def is_link_primitive(name: str) -> bool:
     (not one of its bridges)."""
     return name.startswith("link") and name.endswith("_geom") and name[4:-5].isdigit()
 
+
 _JNT = {"free": mujoco.mjtJoint.mjJNT_FREE, "ball": mujoco.mjtJoint.mjJNT_BALL,
         "slide": mujoco.mjtJoint.mjJNT_SLIDE, "hinge": mujoco.mjtJoint.mjJNT_HINGE}
 _DOFS = {"free": 6, "ball": 3, "slide": 1, "hinge": 1}

@@ -192,7 +192,7 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     slid = _clear_limbs(make, shifts, model, root, kin) if clear else None
     if slid is not None:
         builder, spec, model = slid
-        kin = at_qpos0(model)
+        kin = at_qpos0(model) if stance or placed else None  # what reads it next
         pts = candidate_points(model, kin) if stance else None
         fired.append("clear_limbs")
     if stance:  # both rules read the same model (level_soles changes only the spec)
