@@ -115,7 +115,8 @@ WRITER = ("spun discs as cylinders, slide rails limited, DC motors on continuous
           "strengthened, soles under biped point feet, twin limbs on the sagittal plane made "
           "equal (decoded graphs), leaves beside their limb as rods, limbs through each other "
           "slid apart, branches within a limb too (their joining geometry following, in up to "
-          "three passes), bridges from the primitive's core, fixed bases' branches slid apart too")
+          "three passes), bridges from the primitive's core, fixed bases' branches slid apart too, "
+          "stray limbs off their pairs' ring mirrored (decoded graphs)")
 
 
 def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:

@@ -19,6 +19,10 @@ from robovae.evaluate.quality.symmetry import anatomy
 from robovae.generate.fixes import decoded_fixes
 from robovae.generate.graph_view import GraphView
 from robovae.generate.symmetry import (
+    ATTACH_TOL,
+    CLEAR_TOL,
+    RING_TOL,
+    STRAY_TOL,
     complete_pairs,
     is_symmetric,
     limbs,
@@ -172,6 +176,70 @@ def test_a_stray_leg_gets_its_mirror_image():
     new = limbs(vo)[1][5]
     assert np.allclose(vo.get(new, "link.pos"), v.get(lost, "link.pos"), atol=1e-6)
     assert torch.equal(out.x, g.x)  # the whole hexapod back, to the last feature
+
+
+def _lone_caster(p: list[float]):
+    """A procedural mobile base (two wheels, two caster pairs, a mast) with one rear caster cut
+    off and the other attached at ``p``; its front casters' ``|p_y|`` and ring ``|p|``."""
+    g = mirror_limbs(model_to_graph(procedural_spec(0, "mobile_manipulator").compile(), FS))[0]
+    v = GraphView(g, FS)
+    roots = limbs(v)[1]
+    pos = FS.slice("link.pos")
+    ys = {r: float(g.x[_subtree_links(v, r)[0], pos][1]) for r in roots}
+    casters = [r for r in roots if len(_subtree_links(v, r)) == 2 and abs(ys[r]) > 0.1]
+    assert len(casters) == 4
+    front = [r for r in casters if g.x[_subtree_links(v, r)[0], pos][0] > 0]
+    rear_left, rear_right = sorted((r for r in casters if r not in front), key=lambda r: -ys[r])
+    lone = _without(g, {rear_right})
+    vl = GraphView(lone, FS)
+    moved = [r for r in limbs(vl)[1] if len(_subtree_links(vl, r)) == 2
+             and float(lone.x[_subtree_links(vl, r)[0], pos][0]) < 0][0]
+    links = _subtree_links(vl, moved)
+    lone.x[links[0], pos] = torch.tensor(p, dtype=lone.x.dtype)
+    length = float(sum(lone.x[n, pos].norm() for n in links))
+    return lone, abs(ys[front[0]]), float(g.x[_subtree_links(v, front[0])[0], pos].norm()), length
+
+
+def test_a_lone_caster_off_its_pairs_ring_gets_its_mirror_image():
+    """A mobile base whose rear casters the decoder gave as one caster nearer the plane and
+    the centre than its front pair: too near the plane for ``STRAY_TOL``, off the pair's ring,
+    so it is mirrored."""
+    p = [-0.12, 0.06, -0.076]
+    lone, pair_y, ring, length = _lone_caster(p)
+    assert abs(p[1]) < STRAY_TOL * pair_y  # not a stray by the pairs' distance to the plane
+    assert abs(float(np.linalg.norm(p)) - ring) > RING_TOL * ring  # off the pair's ring
+    assert 2 * abs(p[1]) >= CLEAR_TOL * length  # room for its mirror image
+    pos = FS.slice("link.pos")
+    before = mirrored_pairs(lone)
+    out, changed = complete_pairs(lone)
+    assert changed and mirrored_pairs(out) == (before[0] + 1, before[1] + 1)
+    vo = GraphView(out, FS)
+    added = [r for r in limbs(vo)[1] if len(_subtree_links(vo, r)) == 2
+             and float(out.x[_subtree_links(vo, r)[0], pos][0]) < 0]
+    assert len(added) == 2
+    got = sorted(out.x[_subtree_links(vo, r)[0], pos].tolist() for r in added)
+    assert np.allclose(got, [[-0.12, -0.06, -0.076], [-0.12, 0.06, -0.076]], atol=1e-6)
+
+
+def test_a_lone_caster_without_room_for_its_mirror_image_is_left_single():
+    """The same caster next to the plane: its mirror image would sit through it."""
+    p = [-0.03, 0.009, -0.015]
+    lone, pair_y, ring, length = _lone_caster(p)
+    vl = GraphView(lone, FS)
+    assert any(len(_subtree_links(vl, r)) == 2 and np.allclose(
+        lone.x[_subtree_links(vl, r)[0], FS.slice("link.pos")].numpy(), p) for r in limbs(vl)[1])
+    assert abs(p[1]) > ATTACH_TOL * np.linalg.norm(p)  # off the plane ...
+    assert abs(float(np.linalg.norm(p)) - ring) > RING_TOL * ring  # ... and off the ring ...
+    assert 2 * abs(p[1]) < CLEAR_TOL * length  # ... without room
+    assert complete_pairs(lone) == (lone, False)
+
+
+@pytest.mark.parametrize("seed", [1, 15, 36, 42])
+def test_a_radial_robots_odd_leg_on_the_ring_is_left_single(seed):
+    """Radial robots with an odd leg count whose odd leg sits off the plane but nearer it than
+    the pairs: it shares their ring, so no sixth (or fourth) leg is added."""
+    g = mirror_limbs(model_to_graph(procedural_spec(seed, "radial").compile(), FS))[0]
+    assert complete_pairs(g) == (g, False)
 
 
 def test_complete_pairs_leaves_other_limbs_alone():
