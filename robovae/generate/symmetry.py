@@ -280,12 +280,13 @@ def complete_pairs(data: RobotTree, feature_set: str | FeatureSet = "paper34"
                    ) -> tuple[RobotTree, bool]:
     """Give every stray limb its mirror image (module docstring): in a robot whose trunk has
     at least one near-mirror pair, a limb off the sagittal plane, in no pair, with the
-    topology of a paired limb and as far off the plane as those pairs or off their ring, gets
-    its mirror image as a new limb, attached at ``M p`` right after it (a generation choice
-    reported as ``complete_pairs``; run after :func:`mirror_limbs`). The training robots pair
-    their limbs off the plane; a decoded robot with a pair and a third leg on one side is a
-    decoding error, and mirroring the stray limb is the repair that keeps what was decoded
-    (removing it instead: the same symmetry, 2 points less standing, docs/generation.md).
+    topology of a paired limb and as far off the plane as those pairs (or off their ring, with
+    room for its mirror image) gets its mirror image as a new limb, attached at ``M p`` right
+    after it (a generation choice reported as ``complete_pairs``; run after
+    :func:`mirror_limbs`). The training robots pair their limbs off the plane; a decoded
+    robot with a pair and a third leg on one side is a decoding error, and mirroring the
+    stray limb is the repair that keeps what was decoded (removing it instead: the same
+    symmetry, 2 points less standing, docs/generation.md).
 
     Returns:
         ``(data, changed)``: the new graph (``data`` itself when nothing was added) and whether
