@@ -192,8 +192,7 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
     fired += builder.fixes + (["ground_wheels"] if shifts else [])
     slid = _clear_limbs(make, shifts, model, root, kin) if clear else None
     if slid is not None:
-        builder, spec, model = slid
-        kin = at_qpos0(model) if stance or placed else None  # what reads it next
+        builder, spec, model, kin = slid
         pts = candidate_points(model, kin) if stance else None
         fired.append("clear_limbs")
     if stance:  # both rules read the same model (level_soles changes only the spec)
@@ -238,18 +237,17 @@ def _standing_leaves(builder: SpecBuilder, model: mujoco.MjModel, kin: mujoco.Mj
 
 def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray],
                  model: mujoco.MjModel, root: int, kin: mujoco.MjData
-                 ) -> tuple[SpecBuilder, mujoco.MjSpec, mujoco.MjModel] | None:
-    """The builder, spec and model of the robot built again (``make``) with
-    :func:`~robovae.generate.overlaps.clear_limbs`' slides (and the wheel mounts' ``shifts``),
+                 ) -> tuple[SpecBuilder, mujoco.MjSpec, mujoco.MjModel, mujoco.MjData] | None:
+    """The builder, spec, model and kinematics at ``qpos0`` of the robot built again
+    (``make``) with :func:`~robovae.generate.overlaps.clear_limbs`' slides (and the wheel
+    mounts' ``shifts``),
     when that leaves fewer off-joint overlaps and every body attached; else None. Up to
     :data:`~robovae.generate.overlaps.PASSES` times, each pass on the robot the last one built
     (its slides added to theirs), while overlaps are left."""
     best = None
     total: dict[str, np.ndarray] = {}
     count = None  # the off-joint overlaps of the robot the pass starts from
-    for n in range(PASSES):
-        if n:  # the robot the last pass built
-            kin = at_qpos0(model)
+    for _ in range(PASSES):
         slides = clear_limbs(model, root, kin)
         if not slides:
             break
@@ -258,13 +256,15 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
         builder = make(shifts, total)
         spec = builder.build()
         moved = _compile(spec)
+        moved_kin = at_qpos0(moved)
         # a mount moved reshapes the geometry joining it to its parent: every overlap counts
-        after = attachment(moved)
+        after = attachment(moved, data=moved_kin)
         if count is None:
-            count = attachment(model).off_joint_pairs if after.off_joint_pairs else 1
+            count = attachment(model, data=kin).off_joint_pairs if after.off_joint_pairs else 1
         if not after.all_attached or after.off_joint_pairs >= count:
             break  # slides come only for a robot with overlaps: none left is fewer
-        best, model, count = (builder, spec, moved), moved, after.off_joint_pairs
+        best = (builder, spec, moved, moved_kin)
+        model, kin, count = moved, moved_kin, after.off_joint_pairs
         if not count:
             break
     return best

@@ -91,6 +91,17 @@ def test_penetration_counts_non_adjacent_bodies_only():
     assert attachment(spec.compile()).penetration == pytest.approx(0.15, abs=1e-6)
 
 
+@pytest.mark.parametrize("kind", ["humanoid", "mobile_manipulator"])
+def test_the_callers_kinematics_give_the_same_result(kind):
+    """``attachment(model, data=kin)`` with ``kin`` at ``qpos0`` is the measure of a new
+    ``MjData``, field for field, and leaves ``kin`` as it was."""
+    model = procedural_spec(5, kind).compile()
+    kin = at_qpos0(model)
+    xpos = kin.geom_xpos.copy()
+    assert attachment(model, data=kin) == attachment(model)
+    assert np.array_equal(kin.geom_xpos, xpos)
+
+
 def _roundtrip(model: mujoco.MjModel, name: str) -> tuple[mujoco.MjModel, list[str]]:
     spec, fired = graph_to_spec(model_to_graph(model, "paper34", name=name), "paper34")
     return spec.compile(), fired

@@ -151,10 +151,11 @@ def _penetration(model: mujoco.MjModel, data: mujoco.MjData, geoms: dict[int, li
 
 
 def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
-               penetration: bool = True) -> AttachResult:
+               penetration: bool = True, data: mujoco.MjData | None = None) -> AttachResult:
     """Detached bodies and self-penetration of a robot file, spec, model or stage at ``qpos0``
     (module docstring; ``gap`` and ``tolerance`` are fractions of the extent; ``penetration``
-    False skips the O(geoms²) overlap search).
+    False skips the O(geoms²) overlap search). ``data``: a model's kinematics at ``qpos0``
+    (``mj_kinematics``), used instead of a new ``MjData`` (the same result; left as given).
 
     Raises:
         RobotFileError: a file that does not load; SettingsError: ``gap`` or ``tolerance``
@@ -165,8 +166,9 @@ def attachment(robot: Robot, gap: float = 0.05, tolerance: float = 0.01,
     if isinstance(robot, Stage):
         data, root, size = robot.data, robot.root, robot.extent
     else:
-        data = mujoco.MjData(model)
-        quiet_forward(model, data)
+        if data is None:
+            data = mujoco.MjData(model)
+            quiet_forward(model, data)
         root = robot_root(model)[0]
         size = extent(model, data, root)
     geoms = robot_geoms(model, root)
