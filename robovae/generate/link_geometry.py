@@ -289,9 +289,9 @@ def _bridge(a: np.ndarray, b: np.ndarray, radius: float) -> GeomPlan:
 def _core(g: GeomPlan, p: np.ndarray, rot_t: np.ndarray) -> np.ndarray:
     """The point of ``g``'s core nearest ``p``: a sphere's centre, a capsule's or a
     cylinder's axis segment, a box's mid-surface (the box shrunk by its smallest half-size)."""
-    local = rot_t @ (p - g.pos)
     if g.type == "sphere":
         return g.pos.copy()
+    local = rot_t @ (p - g.pos)
     if g.type in ("capsule", "cylinder"):
         h = float(g.size[1])
         local = np.array([0.0, 0.0, min(max(float(local[2]), -h), h)])

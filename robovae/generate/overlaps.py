@@ -50,7 +50,7 @@ import numpy as np
 from robovae.evaluate.quality.attachment import near_pairs, off_joint, robot_geoms
 from robovae.evaluate.quality.stage import extent
 from robovae.generate.link_geometry import COVER_TOL, GeomPlan, surface_gap
-from robovae.generate.spec_builder import is_link_primitive
+from robovae.generate.spec_builder import PRIMITIVES, is_link_primitive
 from robovae.generate.stance import at_qpos0
 
 __all__ = ["MAX_ROUNDS", "MAX_SLIDE", "PASSES", "STEP", "TOLERANCE", "clear_limbs"]
@@ -66,10 +66,8 @@ MAX_ROUNDS = 8
 #: The writer runs the rule at most this many times, each on the robot it built again.
 PASSES = 3
 
-_G = mujoco.mjtGeom
-_CAPSULE = int(_G.mjGEOM_CAPSULE)
-_KINDS = {int(_G.mjGEOM_SPHERE): "sphere", int(_G.mjGEOM_CAPSULE): "capsule",
-          int(_G.mjGEOM_CYLINDER): "cylinder", int(_G.mjGEOM_BOX): "box"}
+_CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
+_KINDS = {int(t): kind for kind, t in PRIMITIVES.items()}  # geom type -> GeomPlan kind
 _FAR = np.array([1e6, 1e6, 1e6])  # where a bridge the writer would not make is put
 _Group = list[tuple[int, np.ndarray]]  # (branch's top body, direction of slide, world)
 

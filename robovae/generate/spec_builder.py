@@ -76,8 +76,8 @@ from robovae.generate.mjcf_numbers import (
 from robovae.generate.rules_geometry import DEFAULT_GEOM_RADIUS, GEOM_SIZE_COMPONENTS
 from robovae.generate.rules_mass import MIN_INERTIA, MIN_MASS
 
-__all__ = ["DEFAULT_CTRLRANGE", "DEFAULT_GEAR", "WRITER_FIXES", "ActuatorMode", "SpecBuilder",
-           "is_link_primitive", "link_geom_name"]
+__all__ = ["DEFAULT_CTRLRANGE", "DEFAULT_GEAR", "PRIMITIVES", "WRITER_FIXES", "ActuatorMode",
+           "SpecBuilder", "is_link_primitive", "link_geom_name"]
 
 #: Motor gear when the feature set has none for the joint.
 DEFAULT_GEAR = 1.0
@@ -108,7 +108,8 @@ _JNT = {"free": mujoco.mjtJoint.mjJNT_FREE, "ball": mujoco.mjtJoint.mjJNT_BALL,
 _DOFS = {"free": 6, "ball": 3, "slide": 1, "hinge": 1}
 _TRUE, _FALSE = mujoco.mjtLimited.mjLIMITED_TRUE, mujoco.mjtLimited.mjLIMITED_FALSE
 _SPHERE = mujoco.mjtGeom.mjGEOM_SPHERE
-_PRIMITIVE = {"sphere": _SPHERE, "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+#: The MuJoCo geom type of each kind of :class:`~robovae.generate.link_geometry.GeomPlan`.
+PRIMITIVES = {"sphere": _SPHERE, "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
               "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "box": mujoco.mjtGeom.mjGEOM_BOX}
 _GEOM_SIZES = tuple(GEOM_SIZE_COMPONENTS[t] for t in GEOM_TYPES)
 _GEOM_GROUPS = np.array([0, 3, 6])  # size, pos, quat of a geom plan
@@ -324,7 +325,7 @@ class SpecBuilder:
             _GEOM_GROUPS)
         for (i, k, plan), v in zip(plans, numbers):
             g = bodies[i].add_geom(name=link_geom_name(i, k),
-                                   type=_PRIMITIVE[plan.type], size=v[:3], pos=v[3:6],
+                                   type=PRIMITIVES[plan.type], size=v[:3], pos=v[3:6],
                                    quat=v[6:], rgba=_LINK_RGBA)
             g.contype, g.conaffinity = 1, int(self.self_collision)
 

@@ -240,10 +240,9 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
                  ) -> tuple[SpecBuilder, mujoco.MjSpec, mujoco.MjModel, mujoco.MjData] | None:
     """The builder, spec, model and kinematics at ``qpos0`` of the robot built again
     (``make``) with :func:`~robovae.generate.overlaps.clear_limbs`' slides (and the wheel
-    mounts' ``shifts``),
-    when that leaves fewer off-joint overlaps and every body attached; else None. Up to
-    :data:`~robovae.generate.overlaps.PASSES` times, each pass on the robot the last one built
-    (its slides added to theirs), while overlaps are left."""
+    mounts' ``shifts``), when that leaves fewer off-joint overlaps and every body attached;
+    else None. Up to :data:`~robovae.generate.overlaps.PASSES` times, each pass on the robot
+    the last one built (its slides added to theirs), while overlaps are left."""
     best = None
     total: dict[str, np.ndarray] = {}
     count = None  # the off-joint overlaps of the robot the pass starts from
