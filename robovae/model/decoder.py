@@ -317,7 +317,9 @@ class TreeDecoder(nn.Module):
         if max_nodes < 1 or max_depth < 0:
             raise ValueError("max_nodes must be >= 1 and max_depth >= 0")
         b, dev, hid = z.shape[0], z.device, self.hidden_dim
-        buf = _NodeBuffer(b * min(max_nodes, 32), self.feat_dim, hid, z.dtype, dev)
+        # room for 64 nodes a latent (the default model's robots have 39 on average): rows
+        # never used cost address space only, a buffer that grows copies every row
+        buf = _NodeBuffer(b * min(max_nodes, 64), self.feat_dim, hid, z.dtype, dev)
         heads = _LatentHeads(self, z, node_latents, node_noise, max_nodes)
         lat = torch.arange(b, device=dev)
         h0 = z.new_zeros(b, hid)
@@ -436,12 +438,15 @@ class _NodeBuffer:
         self.n = 0
         long: _TensorKwargs = {"dtype": torch.long, "device": dev}
         flt: _TensorKwargs = {"dtype": dtype, "device": dev}
-        self.owner, self.parent = torch.zeros(cap, **long), torch.zeros(cap, **long)
-        self.depth, self.type = torch.zeros(cap, **long), torch.zeros(cap, **long)
-        self.nchild = torch.zeros(cap, **long)
-        self.x = torch.zeros(cap, d, **flt)
-        self.px, self.down = torch.zeros(cap, 3 * hid, **flt), torch.zeros(cap, hid, **flt)
-        self.csum, self.cgated = torch.zeros(cap, hid, **flt), torch.zeros(cap, hid, **flt)
+        # uninitialised: every field of a row is written when its node is added (add), so the
+        # memory of rows never used is never touched (docs/generation.md, "The decoder's
+        # buffer")
+        self.owner, self.parent = torch.empty(cap, **long), torch.empty(cap, **long)
+        self.depth, self.type = torch.empty(cap, **long), torch.empty(cap, **long)
+        self.nchild = torch.empty(cap, **long)
+        self.x = torch.empty(cap, d, **flt)
+        self.px, self.down = torch.empty(cap, 3 * hid, **flt), torch.empty(cap, hid, **flt)
+        self.csum, self.cgated = torch.empty(cap, hid, **flt), torch.empty(cap, hid, **flt)
 
     _FIELDS = ("owner", "parent", "depth", "type", "nchild", "x", "px", "down", "csum",
                "cgated")
@@ -454,13 +459,15 @@ class _NodeBuffer:
             cap = max(2 * self.owner.shape[0], self.n + m)
             for f in self._FIELDS:
                 old = getattr(self, f)
-                new = old.new_zeros((cap, *old.shape[1:]))
+                new = old.new_empty((cap, *old.shape[1:]))
                 new[: self.n] = old[: self.n]
                 setattr(self, f, new)
         ids = torch.arange(self.n, self.n + m, device=owner.device)
         self.owner[ids], self.parent[ids], self.depth[ids], self.type[ids] = (
             owner, parent, depth, types)
         self.x[ids], self.px[ids], self.down[ids] = x, px, down
+        fresh = slice(self.n, self.n + m)  # a new node has no children yet
+        self.nchild[fresh], self.csum[fresh], self.cgated[fresh] = 0, 0.0, 0.0
         self.n += m
         return ids
 

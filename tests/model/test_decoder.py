@@ -93,6 +93,24 @@ def test_decode_respects_limits(bias: float) -> None:
     assert dec.decode(z[:2], max_nodes=1)[0][0].tolist() == [-1]
 
 
+def test_decode_in_a_batch_is_decoding_alone() -> None:
+    """Trees that outgrow the node buffer (64 nodes a latent at first, then doubled), decoded
+    in a batch and one at a time after other work (the buffer's memory is not cleared: each
+    node's child sums must start at zero as it is added): the same trees, the same features
+    but for the last bits of float64 sums (a batch's matrix products)."""
+    dec = make_decoder().double()
+    with torch.no_grad():
+        dec.topo.u.bias.add_(2.0)
+    z = torch.randn(6, 8, dtype=torch.float64) * torch.tensor([0.5, 1, 2, 4, 8, 16])[:, None]
+    together = dec.decode(z, max_nodes=150, max_depth=6)
+    assert max(p.numel() for p, _, _ in together) > 64  # some trees grew the buffer
+    for k in range(len(z)):
+        dec.decode(torch.randn(3, 8, dtype=torch.float64), max_nodes=30)  # memory to reuse
+        (p, t, x), = dec.decode(z[k], max_nodes=150, max_depth=6)
+        assert torch.equal(p, together[k][0]) and torch.equal(t, together[k][1])
+        torch.testing.assert_close(x, together[k][2], rtol=0.0, atol=1e-9)
+
+
 def test_decode_rejects_nonfinite() -> None:
     dec = make_decoder()
     z = torch.zeros(3, 8)
