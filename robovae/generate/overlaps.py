@@ -35,11 +35,13 @@ that a limb moves before its foot. This repeats, for at most :data:`MAX_ROUNDS` 
 none is left (an overlap no slide clears is passed over).
 
 :func:`clear_limbs` returns the mounts' displacements in their parents' frames; the writer
-builds the robot again with them (the geometry joining a mount to its parent follows it) and
-keeps that robot only when fewer of its geoms overlap off joint and every body is still attached
-(:func:`~robovae.evaluate.quality.attachment.attachment`). The robot built again is not quite
-the one the rule tested (a bridge the writer adds, a segment that turns), so while overlaps are
-left the writer runs the rule again on it, up to :data:`PASSES` times, adding the slides.
+builds the robot again with them (the geometry joining a mount to its parent follows it; the
+spec is moved in place, :meth:`~robovae.generate.spec_builder.SpecBuilder.move_built`) and
+keeps that robot only when fewer of its geoms overlap off joint and every body is still
+attached (:func:`~robovae.evaluate.quality.attachment.attachment`). The robot built again is
+not quite the one the rule tested (a bridge the writer adds, a segment that turns), so while
+overlaps are left the writer runs the rule again on it, up to :data:`PASSES` times, adding the
+slides.
 """
 
 from __future__ import annotations

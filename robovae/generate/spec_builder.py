@@ -54,6 +54,7 @@ tree but is reported alike: some link's primitive (from its size) did not reach 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Literal
 
 import mujoco
@@ -117,6 +118,14 @@ _LINK_RGBA = [0.55, 0.6, 0.7, 1.0]
 _GEOM_RGBA = [0.8, 0.55, 0.35, 1.0]
 
 
+def _geom_numbers(plans: list[GeomPlan]) -> list[list[float]]:
+    """Each plan's size, pos and quat as MJCF writes them (each a vector), in one pass."""
+    if not plans:
+        return []
+    return mjcf_round_vectors(np.array([np.concatenate([p.size, p.pos, p.quat])
+                                        for p in plans]), _GEOM_GROUPS)
+
+
 class SpecBuilder:
     """Builds the ``MjSpec`` of one robot graph (module docstring for the mapping).
 
@@ -153,16 +162,78 @@ class SpecBuilder:
         self.side_leaves: list[int] = []
         #: ... except these, which the robot stands on (the writer's ``feet``)
         self.feet: set[int] = set()
+        # what build() made, for move_built(): the spec, the body each link.pos places and
+        # each link's body, children, invented geoms and their plans (None: the graph's geoms)
+        self._spec: mujoco.MjSpec | None = None
+        self._placed: dict[int, mujoco.MjsBody] = {}
+        self._bodies: dict[int, mujoco.MjsBody] = {}
+        self._kids: dict[int, list[int]] | None = None
+        self._geoms: dict[int, list[mujoco.MjsGeom]] = {}
+        self._plans: dict[int, list[GeomPlan]] = {}
 
-    def move_links(self, shifts: dict[str, np.ndarray]) -> None:
-        """Move bodies ``link<i>`` by ``shifts[name]`` in their parents' frames (their
-        ``link.pos``, rounded as MJCF writes it), before :meth:`build`."""
+    def move_built(self, shifts: dict[str, np.ndarray], base: np.ndarray) -> Callable[[], None]:
+        """Move the links of the spec :meth:`build` made, in place, to where :meth:`build`
+        would put them for a builder whose values are ``base`` (this one's before any move)
+        with each ``link<i>`` named in ``shifts`` moved by ``shifts[name]`` in its parent's
+        frame (its ``link.pos``, rounded as MJCF writes it): the values and the bodies their
+        ``link.pos`` places, the geometry joining each moved link's parent to its children
+        made again (:func:`~robovae.generate.link_geometry.link_geoms`: geom ``k`` from plan
+        ``k``, a bridge gained added, one lost deleted) and ``geom_bridge`` in :attr:`fixes`
+        as that build would record it — the same spec, to the byte of its MJCF, without
+        building it (a compile is still due). Returns the undo: the spec as it was."""
         pos = self.fs.slice("link.pos")
+        target = base[:, pos].copy()
         for name, shift in shifts.items():
             i = name.removeprefix("link")
-            if not i.isdigit() or self.types[int(i)] != LINK:
-                raise ValueError(f"move_links: {name!r} is not a link body of this graph")
-            self.x[int(i), pos] = mjcf_round_vector(self.x[int(i), pos] + shift)
+            if not i.isdigit() or int(i) not in self._placed:
+                raise ValueError(f"move_built: {name!r} is not a link body of this robot")
+            target[int(i)] = mjcf_round_vector(base[int(i), pos] + shift)
+        moved = [i for i in self._placed if (target[i] != self.x[i, pos]).any()]
+        rows = {i: self.x[i, pos].copy() for i in moved}
+        parents = sorted({self.anc[i] for i in moved if self.anc[i] >= 0}) \
+            if self._kids is not None else []
+        plans = {k: self._plans[k] for k in parents}
+        fixes = list(self.fixes)
+
+        def put(values: dict[int, np.ndarray]) -> None:
+            for i, row in values.items():
+                self.x[i, pos] = row
+                self._placed[i].pos = self.vec(i, "link.pos")
+
+        def undo() -> None:
+            put(rows)
+            for k, made in plans.items():
+                self._set_link_geoms(k, made)
+            self.fixes[:] = fixes
+
+        put({i: target[i] for i in moved})
+        for k in parents:
+            self._set_link_geoms(k, link_geoms(self._link_frame(k, self._kids or {})))
+        bridged = any(plan.bridge for made in self._plans.values() for plan in made)
+        if bridged != ("geom_bridge" in self.fixes):  # always the last fix build records
+            self.fixes[:] = [f for f in self.fixes if f != "geom_bridge"] \
+                + (["geom_bridge"] if bridged else [])
+        return undo
+
+    def _set_link_geoms(self, i: int, plans: list[GeomPlan]) -> None:
+        """Link ``i``'s geoms remade in place from ``plans`` (its body's geoms are its
+        plans' alone: build adds no other there)."""
+        geoms, spec = self._geoms[i], self._spec
+        assert spec is not None  # build made the geoms
+        for g in geoms[len(plans):]:
+            spec.delete(g)
+        del geoms[len(plans):]
+        for k in range(len(geoms), len(plans)):
+            geoms.append(self._link_geom(self._bodies[i], i, k))
+        for g, plan, v in zip(geoms, plans, _geom_numbers(plans)):
+            g.type, g.size, g.pos, g.quat = PRIMITIVES[plan.type], v[:3], v[3:6], v[6:]
+        self._plans[i] = plans
+
+    def _link_geom(self, body: mujoco.MjsBody, i: int, k: int, **values: object
+                   ) -> mujoco.MjsGeom:
+        g = body.add_geom(name=link_geom_name(i, k), rgba=_LINK_RGBA, **values)
+        g.contype, g.conaffinity = 1, int(self.self_collision)
+        return g
 
     def get(self, i: int, key: str) -> np.ndarray:
         """The columns of feature ``key`` of node ``i`` (rounded as MJCF writes them)."""
@@ -320,14 +391,13 @@ class SpecBuilder:
             return
         if any(plan.bridge for _, _, plan in plans):
             self.fix("geom_bridge")
-        numbers = mjcf_round_vectors(
-            np.array([np.concatenate([p.size, p.pos, p.quat]) for _, _, p in plans]),
-            _GEOM_GROUPS)
-        for (i, k, plan), v in zip(plans, numbers):
-            g = bodies[i].add_geom(name=link_geom_name(i, k),
-                                   type=PRIMITIVES[plan.type], size=v[:3], pos=v[3:6],
-                                   quat=v[6:], rgba=_LINK_RGBA)
-            g.contype, g.conaffinity = 1, int(self.self_collision)
+        self._kids, self._bodies = kids, bodies
+        self._geoms = {i: [] for i in kids}
+        self._plans = {i: [] for i in kids}
+        for (i, k, plan), v in zip(plans, _geom_numbers([plan for _, _, plan in plans])):
+            self._geoms[i].append(self._link_geom(bodies[i], i, k, type=PRIMITIVES[plan.type],
+                                                  size=v[:3], pos=v[3:6], quat=v[6:]))
+            self._plans[i].append(plan)
 
     def _graph_geom(self, body: mujoco.MjsBody, g: int) -> None:
         k = int(np.argmax(self.get(g, "geom.type")))
@@ -346,7 +416,8 @@ class SpecBuilder:
 
     def build(self) -> mujoco.MjSpec:
         """The spec of the robot (not compiled)."""
-        spec = mujoco.MjSpec()
+        spec = self._spec = mujoco.MjSpec()
+        self._placed = {}
         spec.modelname = self.name
         spec.compiler.degree = False
         spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
@@ -376,6 +447,7 @@ class SpecBuilder:
             quat = self.vec(i, "link.quat")
             for k, group in enumerate(groups[:-1]):  # > 6 DoFs: light intermediate bodies
                 mid = parent_body.add_body(name=f"link{i}_split{k}", pos=pos, quat=quat)
+                self._placed.setdefault(i, mid)
                 pos, quat = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]
                 m = max(MIN_MASS, 1e-3 * float(self.get(i, "link.mass")[0]))
                 inertia = max(MIN_INERTIA, 1e-3 * float(np.mean(self.get(i, "link.inertia"))))
@@ -386,6 +458,7 @@ class SpecBuilder:
                 top_level = False
             body = parent_body.add_body(name=f"link{i}", pos=pos, quat=quat)
             bodies[i] = body
+            self._placed.setdefault(i, body)
             self._inertial(body, float(self.get(i, "link.mass")[0]), self.get(i, "link.inertia"),
                            self.get(i, "link.ipos"), self.get(i, "link.iquat"))
             for j, t in groups[-1]:

@@ -39,7 +39,6 @@ import functools
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -156,11 +155,9 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         data, fired = apply_rules(data, fs)
     feet: set[int] = set()
 
-    def make(*moves: dict[str, np.ndarray]) -> SpecBuilder:
+    def make() -> SpecBuilder:
         made = SpecBuilder(data, fs, name, actuators, self_collision)
         made.feet = feet
-        for move in moves:
-            made.move_links(move)
         return made
 
     builder = make()
@@ -183,16 +180,15 @@ def _build(data: RobotTree, fs: FeatureSet, name: str, rules: bool, actuators: A
         kin = at_qpos0(model)
         pts = candidate_points(model, kin)
     shifts = ground_wheels(model, root, kin, pts) if stance else {}
-    if shifts:  # built again, the mounts moved: their bridges follow them
-        builder = make(shifts)
-        spec = builder.build()
+    if shifts:  # the mounts moved in place, their bridges following them
+        builder.move_built(shifts, builder.x.copy())
         model = _compile(spec)
         kin = at_qpos0(model)
         pts = candidate_points(model, kin)
     fired += builder.fixes + (["ground_wheels"] if shifts else [])
-    slid = _clear_limbs(make, shifts, model, root, kin) if clear else None
+    slid = _clear_limbs(builder, spec, model, root, kin) if clear else None
     if slid is not None:
-        builder, spec, model, kin = slid
+        model, kin = slid
         pts = candidate_points(model, kin) if stance else None
         fired.append("clear_limbs")
     if stance:  # both rules read the same model (level_soles changes only the spec)
@@ -235,15 +231,18 @@ def _standing_leaves(builder: SpecBuilder, model: mujoco.MjModel, kin: mujoco.Mj
     return {i for i in builder.side_leaves if f"link{i}" in names}
 
 
-def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray],
-                 model: mujoco.MjModel, root: int, kin: mujoco.MjData
-                 ) -> tuple[SpecBuilder, mujoco.MjSpec, mujoco.MjModel, mujoco.MjData] | None:
-    """The builder, spec, model and kinematics at ``qpos0`` of the robot built again
-    (``make``) with :func:`~robovae.generate.overlaps.clear_limbs`' slides (and the wheel
-    mounts' ``shifts``), when that leaves fewer off-joint overlaps and every body attached;
-    else None. Up to :data:`~robovae.generate.overlaps.PASSES` times, each pass on the robot
-    the last one built (its slides added to theirs), while overlaps are left."""
+def _clear_limbs(builder: SpecBuilder, spec: mujoco.MjSpec, model: mujoco.MjModel, root: int,
+                 kin: mujoco.MjData) -> tuple[mujoco.MjModel, mujoco.MjData] | None:
+    """Slide the branches of ``builder``'s ``spec`` (compiled as ``model``, ``kin`` its
+    kinematics at ``qpos0``) apart by :func:`~robovae.generate.overlaps.clear_limbs`' slides,
+    when that leaves fewer off-joint overlaps and every body attached: the model compiled then
+    and its kinematics; else None, the spec as it was. Up to
+    :data:`~robovae.generate.overlaps.PASSES` times, each pass on the robot the last one made
+    (its slides added to theirs), while overlaps are left. Each pass moves the spec in place
+    (:meth:`~robovae.generate.spec_builder.SpecBuilder.move_built`: the robot built again with
+    the slides, without building it), undone when not kept."""
     best = None
+    base = builder.x.copy()
     total: dict[str, np.ndarray] = {}
     count = None  # the off-joint overlaps of the robot the pass starts from
     for _ in range(PASSES):
@@ -252,8 +251,7 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
             break
         for name, move in slides.items():  # in parents' frames, which no slide turns: they add
             total[name] = total.get(name, np.zeros(3)) + move
-        builder = make(shifts, total)
-        spec = builder.build()
+        undo = builder.move_built(total, base)
         moved = _compile(spec)
         moved_kin = at_qpos0(moved)
         # a mount moved reshapes the geometry joining it to its parent: every overlap counts
@@ -261,8 +259,9 @@ def _clear_limbs(make: Callable[..., SpecBuilder], shifts: dict[str, np.ndarray]
         if count is None:
             count = attachment(model, data=kin).off_joint_pairs if after.off_joint_pairs else 1
         if not after.all_attached or after.off_joint_pairs >= count:
+            undo()
             break  # slides come only for a robot with overlaps: none left is fewer
-        best = (builder, spec, moved, moved_kin)
+        best = (moved, moved_kin)
         model, kin, count = moved, moved_kin, after.off_joint_pairs
         if not count:
             break
