@@ -162,7 +162,12 @@ def test_ctrl_c_ends_a_run_in_one_line(trained, tmp_path) -> None:
     manifest holds whole records and the folder is free for the same command to go on. Until
     2026-11-29 Python's ``KeyboardInterrupt`` traceback of wherever the run was, the workers'
     tracebacks too, and in 2 runs of 20 a process that never ended (its worker queue's feeder
-    thread, blocked on a pipe no worker read any more, joined at exit)."""
+    thread, blocked on a pipe no worker read any more, joined at exit).
+
+    Batches of 64 latents: the manifest is flushed a batch at a time, once the next batch is
+    queued, so the first line waits for two batches decoded and one built; with generate's
+    1,024 that took 82 s of this test on a slow 2-core machine. At the interrupt the workers
+    still have a batch's chunks queued, as in a run of 1,024."""
     import json
     import signal
     import time
@@ -170,7 +175,7 @@ def test_ctrl_c_ends_a_run_in_one_line(trained, tmp_path) -> None:
     out = tmp_path / "gen"
     proc = subprocess.Popen(
         [sys.executable, "-m", "robovae.cli", "generate", "--ckpt", str(trained[2]), "-n",
-         "100000", "--out", str(out), "--jobs", "2", "--no-quality"],
+         "100000", "--out", str(out), "--jobs", "2", "--no-quality", "--batch-size", "64"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         preexec_fn=lambda: (signal.signal(signal.SIGINT, signal.SIG_DFL), os.setpgrp()))
     try:
