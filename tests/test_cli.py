@@ -165,9 +165,9 @@ def test_ctrl_c_ends_a_run_in_one_line(trained, tmp_path) -> None:
     thread, blocked on a pipe no worker read any more, joined at exit).
 
     Batches of 64 latents: the manifest is flushed a batch at a time, once the next batch is
-    queued, so the first line waits for two batches decoded and one built; with generate's
-    1,024 that took 82 s of this test on a slow 2-core machine. At the interrupt the workers
-    still have a batch's chunks queued, as in a run of 1,024."""
+    queued, so the first line waits for two batches decoded and one built (generate's 1,024
+    make that a minute or more); at the interrupt the workers still have a batch's chunks
+    queued, as in a run of 1,024."""
     import json
     import signal
     import time

@@ -33,8 +33,8 @@ def _trainer(tmp_path: Path, epochs: int, **kw) -> L.Trainer:
 
 
 def test_overfit_go2(tmp_path, menagerie_dir, cache_root):
-    """The paper's first check: one robot, RA 100 % and FRE ~ 0 (here < 1e-4): 600 steps
-    (FRE 6.7e-5; 900 steps, 5.8e-5, cost half as much again; 400 steps, 1.01e-4, fail)."""
+    """The paper's first check: one robot, RA 100 % and FRE ~ 0 (here < 1e-4; 600 steps reach
+    6.7e-5, 400 do not)."""
     L.seed_everything(0)
     dm = RobotDataModule([f"dir:{menagerie_dir}"], root=str(cache_root), train_names=["go2"],
                          test_names=["go2"], val_is_train=True, batch_size=1)
